@@ -1,0 +1,31 @@
+"""Physics of the brake, one module per model of Ehret, Hohmann & Heckmann (2022).
+
+- :mod:`.friction`: the dynamic coefficient of friction of one disc unit (paper Eq. 4).
+- :mod:`.thermal`: the two-capacity disc temperature model (paper Eqs. 5-10).
+- :mod:`.mechanics`: brake force, sliding speed and running resistance (paper Eqs. 11, 12, 14).
+- :mod:`.pneumatics`: brake cylinder (dead time and lag) and caliper (spec Section 4).
+- :mod:`.scatter`: the stochastic friction set-ups DS, MCS-100, MCS-75/25 (paper Eq. 13).
+
+Every function works on numpy arrays that broadcast over a batch: trains along the first axis,
+then axles and the discs of each axle. Nothing here integrates in time; that is the simulator's job.
+"""
+
+from .friction import FrictionLaw
+from .mechanics import RunningResistance, brake_force_N, sliding_speed_mps
+from .pneumatics import BrakeCylinder, Caliper
+from .scatter import FrictionDraw, draw_friction, draw_running_resistance
+from .thermal import DiscThermalModel, HeatFlows
+
+__all__ = [
+    "BrakeCylinder",
+    "Caliper",
+    "DiscThermalModel",
+    "FrictionDraw",
+    "FrictionLaw",
+    "HeatFlows",
+    "RunningResistance",
+    "brake_force_N",
+    "draw_friction",
+    "draw_running_resistance",
+    "sliding_speed_mps",
+]

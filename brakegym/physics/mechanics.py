@@ -1,0 +1,53 @@
+"""Longitudinal mechanics (paper Eqs. 11, 12, 14; spec Section 3).
+
+Dynamometer: one disc unit brakes a flywheel of effective mass m_eff. Train: a single mass
+m = sum of m_eff,i, perfect rolling, decelerated by the brake forces of all discs at the wheel and
+by the running resistance F_R(v) = A + B v + C v^2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import RunningResistance as RunningResistanceConfig
+
+
+def sliding_speed_mps(speed_mps: np.ndarray, friction_radius_m: float, wheel_radius_m: float) -> np.ndarray:
+    """Disc speed at the friction radius, v_fric = v r_fric / r_wheel (Eq. 12)."""
+    return speed_mps * (friction_radius_m / wheel_radius_m)
+
+
+def brake_force_N(
+    friction_force_N: np.ndarray, friction_radius_m: float, wheel_radius_m: float
+) -> np.ndarray:
+    """Retarding force at the wheel-rail contact of each train: sum over its discs of
+    mu_i F_C,i r_fric / r_wheel (Eq. 11, the brake torque over the wheel radius).
+
+    ``friction_force_N`` is mu F_C per disc, shape (trains, axles, discs per axle).
+    """
+    return friction_force_N.sum(axis=(-2, -1)) * (friction_radius_m / wheel_radius_m)
+
+
+@dataclass(frozen=True)
+class RunningResistance:
+    """F_R(v) = A + B v + C v^2 (Eq. 14). ``A_N`` may be an array, one value per train (the
+    running-resistance scatter of the MCS set-ups)."""
+
+    A_N: float | np.ndarray
+    B_N_per_mps: float
+    C_N_per_mps2: float
+
+    @classmethod
+    def from_config(cls, config: RunningResistanceConfig) -> "RunningResistance":
+        return cls(A_N=config.A_N, B_N_per_mps=config.B_N_per_mps, C_N_per_mps2=config.C_N_per_mps2)
+
+    @classmethod
+    def none(cls) -> "RunningResistance":
+        """No resistance: the dynamometer."""
+        return cls(A_N=0.0, B_N_per_mps=0.0, C_N_per_mps2=0.0)
+
+    def force_N(self, speed_mps: np.ndarray, A_N: float | np.ndarray | None = None) -> np.ndarray:
+        a = self.A_N if A_N is None else A_N
+        return a + speed_mps * (self.B_N_per_mps + self.C_N_per_mps2 * speed_mps)

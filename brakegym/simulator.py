@@ -1,0 +1,540 @@
+"""Batched fixed-step simulator of braking trains and dynamometer stops.
+
+The simulator integrates the physics modules of :mod:`brakegym.physics` for a batch of
+applications at once: arrays are shaped (trains, axles, discs per axle) for disc states and
+(trains,) for train states, so one call advances every disc of every train.
+
+Integration is classic fixed-step RK4 (spec Section 3: 0.05 % at 0.1 s against the golden values).
+The brake-cylinder pressure is not an RK4 state: its lag is solved exactly within each step
+(:mod:`brakegym.physics.pneumatics`), which keeps the pneumatic response free of step error.
+Motion stops at v = 0 (no reversal); the stop instant is interpolated inside the step, and after it
+the train stands still while its discs go on cooling.
+
+Extension points, so that new physics needs no change of the core loop:
+
+- ``extra_forces``: objects with ``force_N(context) -> (trains,)`` retarding forces (a gradient);
+- ``friction_modifiers``: objects with ``scale(context) -> factor`` on the effective coefficient of
+  friction of each disc (wet pads, fade, a friction level error); the friction state of Eq. 4
+  itself is untouched.
+
+The ``context`` handed to them is a :class:`StageContext`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, Sequence
+
+import numpy as np
+
+from .physics import BrakeCylinder, Caliper, DiscThermalModel, FrictionLaw, RunningResistance
+from .physics.mechanics import brake_force_N
+
+# Rows of the packed per-disc state, shape (len(DISC_STATES), trains, axles, discs per axle).
+DISC_STATES = (
+    "mu",  # dynamic coefficient of friction (Eq. 4)
+    "friction_temperature_K",  # T_fric
+    "disc_temperature_K",  # T_disc
+    "mu_distance_m",  # integral of mu ds, for mu_s (Eq. 3)
+    "friction_heat_J",  # integral of Q_fric dt: heat that entered the disc
+    "cooling_heat_J",  # integral of (Q_surf + Q_vent) dt: heat given to the air
+)
+# Rows of the packed per-train state, shape (len(TRAIN_STATES), trains).
+TRAIN_STATES = (
+    "speed_mps",
+    "position_m",
+    "brake_work_J",  # integral of F_brake v dt
+    "resistance_work_J",  # integral of F_R v dt
+    "extra_work_J",  # integral of the extra forces' v dt
+    "mu_eff_distance_m",  # integral of mu_eff ds (Eq. 15)
+)
+MU, T_FRIC, T_DISC, MU_DISTANCE, FRICTION_HEAT, COOLING_HEAT = range(len(DISC_STATES))
+SPEED, POSITION, BRAKE_WORK, RESISTANCE_WORK, EXTRA_WORK, MU_EFF_DISTANCE = range(len(TRAIN_STATES))
+
+
+@dataclass(frozen=True)
+class Plant:
+    """What is braked and by which physics: the dynamometer rig or a train.
+
+    Geometry and laws are shared by the whole batch; what differs per application (mass, initial
+    state, scattered parameters) is in :class:`BatchConditions`.
+    """
+
+    name: str
+    n_axles: int
+    discs_per_axle: int
+    wheel_radius_m: float
+    friction_radius_m: float
+    friction: FrictionLaw
+    thermal: DiscThermalModel
+    caliper: Caliper
+    running_resistance: RunningResistance
+    max_command: float  # largest cylinder pressure command, bar (clamp force in N on the rig)
+
+    @property
+    def n_discs(self) -> int:
+        return self.n_axles * self.discs_per_axle
+
+    @property
+    def disc_shape(self) -> tuple[int, int]:
+        return (self.n_axles, self.discs_per_axle)
+
+    @property
+    def radius_ratio(self) -> float:
+        """r_fric / r_wheel: sliding speed per train speed, brake force per friction force."""
+        return self.friction_radius_m / self.wheel_radius_m
+
+
+@dataclass
+class BatchConditions:
+    """Per-application values of a batch of B applications.
+
+    Disc arrays broadcast to (B, axles, discs per axle), train arrays to (B,). Temperatures in
+    kelvin.
+    """
+
+    mass_kg: np.ndarray
+    initial_speed_mps: np.ndarray
+    initial_mu: np.ndarray
+    power_coefficient_per_s: np.ndarray
+    running_resistance_A_N: np.ndarray
+    initial_friction_temperature_K: np.ndarray
+    initial_disc_temperature_K: np.ndarray
+    ambient_temperature_K: np.ndarray
+
+    @property
+    def n_trains(self) -> int:
+        return int(np.shape(self.mass_kg)[0])
+
+
+@dataclass
+class StageContext:
+    """What an extension sees at one RK4 stage. Arrays are views: do not write to them."""
+
+    time_s: float
+    speed_mps: np.ndarray  # (B,)
+    position_m: np.ndarray  # (B,)
+    mass_kg: np.ndarray  # (B,)
+    mu: np.ndarray  # (B, A, k), the friction state of Eq. 4
+    clamp_force_N: np.ndarray  # (B, A, 1)
+    friction_temperature_K: np.ndarray  # (B, A, k)
+    friction_heat_J: np.ndarray  # (B, A, k), heat that entered each disc so far
+
+
+class ExtraForce(Protocol):
+    def force_N(self, context: StageContext) -> np.ndarray:
+        """Retarding force on each train, N, shape (B,); negative pushes the train on."""
+        ...
+
+
+class FrictionModifier(Protocol):
+    def scale(self, context: StageContext) -> np.ndarray | float:
+        """Factor on each disc's effective coefficient of friction, broadcastable to (B, A, k)."""
+        ...
+
+
+class PressureSource(Protocol):
+    """Brake-cylinder pressure per axle, bar, shape (B, A), at the start, middle and end of the
+    coming step; ``advance`` then moves to the end of it."""
+
+    def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def advance(self) -> None: ...
+
+    @property
+    def pressure_bar(self) -> np.ndarray: ...
+
+
+class CommandedPressure:
+    """Pressure commands through each train's brake cylinder: dead time, then first-order lag.
+
+    Commands set with :meth:`set_command` take effect ``dead_time`` later. Dead times must be
+    whole numbers of steps, so the delayed command is constant within a step and the lag is
+    solved exactly.
+    """
+
+    def __init__(
+        self,
+        cylinders: Sequence[BrakeCylinder],
+        n_axles: int,
+        step_s: float,
+        initial_pressure_bar: np.ndarray | float = 0.0,
+    ) -> None:
+        n_trains = len(cylinders)
+        self.step_s = step_s
+        self._dead_steps = np.array([c.dead_time_steps(step_s) for c in cylinders], dtype=np.int64)
+        self._half_lag = np.array([c.lag_factor(0.5 * step_s) for c in cylinders])[:, None]
+        self._full_lag = np.array([c.lag_factor(step_s) for c in cylinders])[:, None]
+        self._pressure = np.broadcast_to(np.asarray(initial_pressure_bar, dtype=float), (n_trains, n_axles)).copy()
+        # Ring buffer of past commands: the cylinder of train b sees the command given
+        # dead_steps[b] steps ago. Before any command, the target is the initial pressure.
+        self._history = np.repeat(self._pressure[None], int(self._dead_steps.max()) + 1, axis=0)
+        self._rows = np.arange(n_trains)
+        self._step = 0
+        self._command = self._pressure.copy()
+
+    @property
+    def pressure_bar(self) -> np.ndarray:
+        return self._pressure
+
+    @property
+    def command_bar(self) -> np.ndarray:
+        return self._command
+
+    def set_command(self, command_bar: np.ndarray) -> None:
+        """Command per axle (B, A) from now on. Values are used as given: range checks belong to
+        the caller, who knows where the command came from."""
+        self._command = np.broadcast_to(np.asarray(command_bar, dtype=float), self._pressure.shape).copy()
+
+    def _target(self) -> np.ndarray:
+        slots = len(self._history)
+        self._history[self._step % slots] = self._command
+        return self._history[(self._step - self._dead_steps) % slots, self._rows]
+
+    def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        target = self._target()
+        gap = self._pressure - target
+        self._end = target + gap * self._full_lag
+        return self._pressure, target + gap * self._half_lag, self._end
+
+    def advance(self) -> None:
+        self._pressure = self._end
+        self._step += 1
+
+
+class PrescribedPressure:
+    """Pressure traces given in advance (recorded or scheduled), linearly interpolated.
+
+    ``time_s`` (T,) strictly increasing, ``pressure_bar`` (T, B, A); held at the last value past
+    the end of the trace.
+    """
+
+    def __init__(self, time_s: np.ndarray, pressure_bar: np.ndarray, step_s: float, start_time_s: float = 0.0):
+        self.time_s = np.asarray(time_s, dtype=float)
+        self.trace_bar = np.asarray(pressure_bar, dtype=float)
+        if self.time_s.ndim != 1 or self.trace_bar.ndim != 3 or len(self.time_s) != len(self.trace_bar):
+            raise ValueError("PrescribedPressure needs time_s (T,) and pressure_bar (T, trains, axles)")
+        if np.any(np.diff(self.time_s) <= 0):
+            raise ValueError("PrescribedPressure: time_s must be strictly increasing")
+        self.step_s = step_s
+        self._t0 = start_time_s
+        self._step = 0
+
+    def _at(self, time_s: float) -> np.ndarray:
+        index = int(np.searchsorted(self.time_s, time_s, side="right")) - 1
+        if index < 0:
+            return self.trace_bar[0]
+        if index >= len(self.time_s) - 1:
+            return self.trace_bar[-1]
+        weight = (time_s - self.time_s[index]) / (self.time_s[index + 1] - self.time_s[index])
+        return self.trace_bar[index] + weight * (self.trace_bar[index + 1] - self.trace_bar[index])
+
+    @property
+    def pressure_bar(self) -> np.ndarray:
+        return self._at(self._t0 + self._step * self.step_s)
+
+    def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = self._t0 + self._step * self.step_s
+        return self._at(t), self._at(t + 0.5 * self.step_s), self._at(t + self.step_s)
+
+    def advance(self) -> None:
+        self._step += 1
+
+
+@dataclass
+class StepRecord:
+    """What the last step did, for observers (metrics, recorders)."""
+
+    time_start_s: float
+    disc_start: np.ndarray
+    train_start: np.ndarray
+    clamp_force_start_N: np.ndarray  # (B, A, 1)
+    clamp_force_end_N: np.ndarray  # (B, A, 1)
+    stop_fraction: np.ndarray  # (B,), fraction of the step at which a train stopped; nan if none
+
+
+class Simulator:
+    """Fixed-step RK4 over a batch of trains (or dynamometer stops).
+
+    Parameters
+    ----------
+    plant:
+        Geometry and physics laws, shared by the batch.
+    conditions:
+        Per-application masses, initial states and scattered parameters.
+    pressure:
+        Where the cylinder pressures come from (:class:`CommandedPressure` or
+        :class:`PrescribedPressure`); its step must equal ``step_s``.
+    step_s:
+        Integration step. 0.1 s reproduces the golden values within 0.05 %.
+    """
+
+    def __init__(
+        self,
+        plant: Plant,
+        conditions: BatchConditions,
+        pressure: PressureSource,
+        step_s: float = 0.1,
+        extra_forces: Sequence[ExtraForce] = (),
+        friction_modifiers: Sequence[FrictionModifier] = (),
+        nominal_running_resistance: RunningResistance | None = None,
+    ) -> None:
+        if not step_s > 0:
+            raise ValueError(f"step_s = {step_s}: must be positive")
+        if getattr(pressure, "step_s", step_s) != step_s:
+            raise ValueError(f"pressure source step {pressure.step_s} s differs from simulator step {step_s} s")
+        self.plant = plant
+        self.conditions = conditions
+        self.pressure = pressure
+        self.step_s = float(step_s)
+        self.extra_forces = tuple(extra_forces)
+        self.friction_modifiers = tuple(friction_modifiers)
+        # Eq. 15 evaluates mu_eff with the nominal running resistance, not the drawn one.
+        self.nominal_running_resistance = nominal_running_resistance or plant.running_resistance
+
+        n = conditions.n_trains
+        disc_shape = (n, *plant.disc_shape)
+        self.mass_kg = np.asarray(conditions.mass_kg, dtype=float).reshape(n)
+        self._inverse_mass = 1.0 / self.mass_kg
+        self.resistance_A_N = np.broadcast_to(np.asarray(conditions.running_resistance_A_N, dtype=float), (n,)).copy()
+        self.power_coefficient = np.broadcast_to(
+            np.asarray(conditions.power_coefficient_per_s, dtype=float), disc_shape
+        ).copy()
+        self.ambient_K = np.broadcast_to(np.asarray(conditions.ambient_temperature_K, dtype=float), (n,)).copy()
+        self._ambient_disc = self.ambient_K[:, None, None]
+
+        self.disc = np.zeros((len(DISC_STATES), *disc_shape))
+        self.disc[MU] = conditions.initial_mu
+        self.disc[T_FRIC] = conditions.initial_friction_temperature_K
+        self.disc[T_DISC] = conditions.initial_disc_temperature_K
+        self.train = np.zeros((len(TRAIN_STATES), n))
+        self.train[SPEED] = conditions.initial_speed_mps
+        if np.any(self.train[SPEED] < 0):
+            raise ValueError("initial speeds must not be negative")
+        self.moving = self.train[SPEED] > 0
+        self.stop_time_s = np.full(n, np.nan)
+        self.step_index = 0
+        self.last_step: StepRecord | None = None
+
+    # ----------------------------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        return self.step_index * self.step_s
+
+    @property
+    def n_trains(self) -> int:
+        return self.train.shape[1]
+
+    def clamp_force_N(self, pressure_bar: np.ndarray) -> np.ndarray:
+        """Clamp force per disc unit, (B, A, 1), from the per-axle cylinder pressure."""
+        return self.plant.caliper.clamp_force_N(pressure_bar)[:, :, None]
+
+    def _friction_scale(self, context: StageContext) -> np.ndarray | float:
+        scale: np.ndarray | float = 1.0
+        for modifier in self.friction_modifiers:
+            scale = scale * modifier.scale(context)
+        return scale
+
+    def _forces(
+        self, time_s: float, disc: np.ndarray, train: np.ndarray, clamp_force: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
+        """Friction force per disc and the train forces at one state."""
+        plant = self.plant
+        mu = plant.friction.bounded(disc[MU])
+        context = None
+        if self.friction_modifiers or self.extra_forces:
+            context = StageContext(
+                time_s, train[SPEED], train[POSITION], self.mass_kg, disc[MU], clamp_force, disc[T_FRIC],
+                disc[FRICTION_HEAT],
+            )
+        effective_mu = mu * self._friction_scale(context) if self.friction_modifiers else mu
+        friction_force = effective_mu * clamp_force
+        brake = brake_force_N(friction_force, plant.friction_radius_m, plant.wheel_radius_m)
+        resistance = plant.running_resistance.force_N(train[SPEED], self.resistance_A_N)
+        extra = np.zeros_like(brake)
+        for term in self.extra_forces:
+            extra = extra + term.force_N(context)
+        return mu, friction_force, brake, resistance, extra
+
+    def _rates(
+        self, time_s: float, disc: np.ndarray, train: np.ndarray, clamp_force: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        plant = self.plant
+        speed = train[SPEED]
+        # Stages may overshoot past standstill inside the stopping step: the forces extrapolate
+        # smoothly there (for the stop interpolation), the sliding speed does not go negative.
+        sliding = (np.maximum(speed, 0.0) * plant.radius_ratio)[:, None, None]
+        mu, friction_force, brake, resistance, extra = self._forces(time_s, disc, train, clamp_force)
+        friction_power = friction_force * sliding
+        flows = plant.thermal.heat_flows(
+            friction_power, disc[T_FRIC], disc[T_DISC], sliding, self._ambient_disc
+        )
+        d_disc = np.empty_like(disc)
+        d_disc[MU] = plant.friction.rate_per_s(
+            mu, clamp_force, sliding, disc[T_FRIC], self.power_coefficient
+        )
+        d_disc[T_FRIC], d_disc[T_DISC] = plant.thermal.temperature_rates_K_per_s(flows)
+        d_disc[MU_DISTANCE] = mu * speed[:, None, None]
+        d_disc[FRICTION_HEAT] = flows.friction_W
+        d_disc[COOLING_HEAT] = flows.surface_W + flows.ventilation_W
+
+        total = brake + resistance + extra
+        d_train = np.empty_like(train)
+        d_train[SPEED] = np.where(self.moving, -total * self._inverse_mass, 0.0)
+        d_train[POSITION] = speed
+        d_train[BRAKE_WORK] = brake * speed
+        d_train[RESISTANCE_WORK] = resistance * speed
+        d_train[EXTRA_WORK] = extra * speed
+        # Eq. 15: mu_eff = (m d - F_R,nominal(v)) / sum (r_fric / r_wheel) F_C, with m d the
+        # actual retarding force; zero while no clamp force acts (it is only integrated after
+        # the clamp force has reached 95 % of its nominal value).
+        weighted_clamp = clamp_force.sum(axis=(1, 2)) * (plant.discs_per_axle * plant.radius_ratio)
+        nominal_resistance = self.nominal_running_resistance.force_N(speed)
+        mu_eff = np.divide(
+            total - nominal_resistance, weighted_clamp, out=np.zeros_like(total), where=weighted_clamp > 0
+        )
+        d_train[MU_EFF_DISTANCE] = mu_eff * speed
+        return d_disc, d_train
+
+    def step(self) -> StepRecord:
+        """Advance every train by one step."""
+        h = self.step_s
+        t = self.time_s
+        p_start, p_mid, p_end = self.pressure.stage_pressures_bar()
+        f_start, f_mid, f_end = (self.clamp_force_N(p) for p in (p_start, p_mid, p_end))
+        disc0, train0 = self.disc, self.train
+
+        k1d, k1t = self._rates(t, disc0, train0, f_start)
+        k2d, k2t = self._rates(t + 0.5 * h, disc0 + 0.5 * h * k1d, train0 + 0.5 * h * k1t, f_mid)
+        k3d, k3t = self._rates(t + 0.5 * h, disc0 + 0.5 * h * k2d, train0 + 0.5 * h * k2t, f_mid)
+        k4d, k4t = self._rates(t + h, disc0 + h * k3d, train0 + h * k3t, f_end)
+        disc1 = disc0 + (h / 6.0) * (k1d + 2.0 * (k2d + k3d) + k4d)
+        train1 = train0 + (h / 6.0) * (k1t + 2.0 * (k2t + k3t) + k4t)
+
+        stop_fraction = np.full(self.n_trains, np.nan)
+        stopping = self.moving & (train1[SPEED] <= 0.0)
+        if stopping.any():
+            v0 = train0[SPEED, stopping]
+            v1 = train1[SPEED, stopping]
+            theta = v0 / (v0 - v1)
+            stop_fraction[stopping] = theta
+            # The deceleration is nearly constant over one step, so speed falls linearly to
+            # zero at theta and the distance grows by the area of that triangle.
+            disc1[:, stopping] = disc0[:, stopping] + theta[:, None, None] * (disc1[:, stopping] - disc0[:, stopping])
+            train1[:, stopping] = train0[:, stopping] + theta * (train1[:, stopping] - train0[:, stopping])
+            train1[POSITION, stopping] = train0[POSITION, stopping] + 0.5 * v0 * theta * h
+            train1[SPEED, stopping] = 0.0
+            self.stop_time_s[stopping] = t + theta * h
+            self.moving = self.moving & ~stopping
+        disc1[MU] = self.plant.friction.bounded(disc1[MU])
+
+        self.disc, self.train = disc1, train1
+        self.pressure.advance()
+        self.step_index += 1
+        self.last_step = StepRecord(t, disc0, train0, f_start, f_end, stop_fraction)
+        return self.last_step
+
+    # ----------------------------------------------------------------------------------------
+    def deceleration_mps2(self) -> np.ndarray:
+        """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
+        slowing, zero at standstill)."""
+        clamp_force = self.clamp_force_N(self.pressure.pressure_bar)
+        _, _, brake, resistance, extra = self._forces(self.time_s, self.disc, self.train, clamp_force)
+        return np.where(self.moving, (brake + resistance + extra) * self._inverse_mass, 0.0)
+
+    def state_view(self, name: str) -> np.ndarray:
+        """A named state (from DISC_STATES or TRAIN_STATES), as a view."""
+        if name in DISC_STATES:
+            return self.disc[DISC_STATES.index(name)]
+        if name in TRAIN_STATES:
+            return self.train[TRAIN_STATES.index(name)]
+        raise KeyError(f"unknown state {name!r}; known: {DISC_STATES + TRAIN_STATES}")
+
+
+@dataclass
+class StopMetrics:
+    """Summaries of a stop per application (paper Eqs. 3 and 15), updated after each step.
+
+    ``nominal_clamp_force_N`` (B, A) is the clamp force each axle is commanded to reach; the mean
+    COF over distance runs from where the clamp force first reaches 95 % of it to standstill.
+    """
+
+    nominal_clamp_force_N: np.ndarray
+    threshold: float = 0.95
+    onset_position_m: np.ndarray = field(init=False)
+    onset_time_s: np.ndarray = field(init=False)
+    onset_mu_distance: np.ndarray = field(init=False)
+    train_onset_position_m: np.ndarray = field(init=False)
+    train_onset_mu_eff_distance: np.ndarray = field(init=False)
+    peak_friction_temperature_K: np.ndarray = field(init=False)
+    peak_disc_temperature_K: np.ndarray = field(init=False)
+
+    def start(self, sim: Simulator) -> None:
+        n, axles = self.nominal_clamp_force_N.shape
+        self.onset_position_m = np.full((n, axles), np.nan)
+        self.onset_time_s = np.full((n, axles), np.nan)
+        self.onset_mu_distance = np.full((n, axles, sim.plant.discs_per_axle), np.nan)
+        self.train_onset_position_m = np.full(n, np.nan)
+        self.train_onset_mu_eff_distance = np.full(n, np.nan)
+        self.peak_friction_temperature_K = sim.disc[T_FRIC].copy()
+        self.peak_disc_temperature_K = sim.disc[T_DISC].copy()
+
+    @staticmethod
+    def _crossing(start: np.ndarray, end: np.ndarray, level: np.ndarray) -> np.ndarray:
+        """Fraction of the step at which a linearly varying value reaches ``level``."""
+        span = end - start
+        safe = np.where(span > 0, span, 1.0)
+        return np.clip(np.where(span > 0, (level - start) / safe, 0.0), 0.0, 1.0)
+
+    def update(self, sim: Simulator) -> None:
+        record = sim.last_step
+        assert record is not None
+        np.maximum(self.peak_friction_temperature_K, sim.disc[T_FRIC], out=self.peak_friction_temperature_K)
+        np.maximum(self.peak_disc_temperature_K, sim.disc[T_DISC], out=self.peak_disc_temperature_K)
+
+        level = self.threshold * self.nominal_clamp_force_N
+        force_start = record.clamp_force_start_N[:, :, 0]
+        force_end = record.clamp_force_end_N[:, :, 0]
+        new_axle = np.isnan(self.onset_position_m) & (self.nominal_clamp_force_N > 0) & (force_end >= level)
+        if new_axle.any():
+            theta = self._crossing(force_start, force_end, level)
+            position = record.train_start[POSITION][:, None] + theta * (
+                sim.train[POSITION] - record.train_start[POSITION]
+            )[:, None]
+            mu_distance = record.disc_start[MU_DISTANCE] + theta[:, :, None] * (
+                sim.disc[MU_DISTANCE] - record.disc_start[MU_DISTANCE]
+            )
+            self.onset_position_m = np.where(new_axle, position, self.onset_position_m)
+            self.onset_time_s = np.where(new_axle, record.time_start_s + theta * sim.step_s, self.onset_time_s)
+            self.onset_mu_distance = np.where(new_axle[:, :, None], mu_distance, self.onset_mu_distance)
+
+        total_level = level.sum(axis=1)
+        total_start, total_end = force_start.sum(axis=1), force_end.sum(axis=1)
+        new_train = np.isnan(self.train_onset_position_m) & (total_level > 0) & (total_end >= total_level)
+        if new_train.any():
+            theta = self._crossing(total_start, total_end, total_level)
+            self.train_onset_position_m = np.where(
+                new_train,
+                record.train_start[POSITION] + theta * (sim.train[POSITION] - record.train_start[POSITION]),
+                self.train_onset_position_m,
+            )
+            self.train_onset_mu_eff_distance = np.where(
+                new_train,
+                record.train_start[MU_EFF_DISTANCE]
+                + theta * (sim.train[MU_EFF_DISTANCE] - record.train_start[MU_EFF_DISTANCE]),
+                self.train_onset_mu_eff_distance,
+            )
+
+    def mean_mu_over_distance(self, sim: Simulator) -> np.ndarray:
+        """mu_s of Eq. 3 per disc, (B, A, k); nan where the 95 % point was never reached."""
+        distance = sim.train[POSITION][:, None] - self.onset_position_m
+        return (sim.disc[MU_DISTANCE] - self.onset_mu_distance) / distance[:, :, None]
+
+    def distance_after_onset_m(self, sim: Simulator) -> np.ndarray:
+        """s_2 of Eq. 3, per train: from the train's 95 % clamp-force point to standstill."""
+        return sim.train[POSITION] - self.train_onset_position_m
+
+    def effective_mu_over_distance(self, sim: Simulator) -> np.ndarray:
+        """mu_s,eff: Eq. 15's mu_eff averaged over distance like Eq. 3, per train."""
+        distance = sim.train[POSITION] - self.train_onset_position_m
+        return (sim.train[MU_EFF_DISTANCE] - self.train_onset_mu_eff_distance) / distance
