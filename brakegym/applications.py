@@ -104,18 +104,17 @@ class _TrajectoryRecorder:
         self.sample(sim)
 
     def sample(self, sim: Simulator) -> None:
-        n = sim.n_trains
         pressure = np.array(sim.pressure.pressure_bar, copy=True)
-        clamp = np.broadcast_to(sim.clamp_force_N(pressure), (n, *sim.plant.disc_shape)).reshape(n, -1)
+        clamp = np.broadcast_to(sim.clamp_force_N(pressure), sim.disc[MU].shape)
         self.rows["time_s"].append(np.array(sim.time_s))
         self.rows["speed_mps"].append(sim.train[SPEED].copy())
         self.rows["position_m"].append(sim.train[POSITION].copy())
         self.rows["deceleration_mps2"].append(sim.deceleration_mps2())
         self.rows["pressure_bar"].append(pressure)
-        self.rows["clamp_force_N"].append(clamp.copy())
-        self.rows["mu"].append(sim.disc[MU].reshape(n, -1).copy())
-        self.rows["friction_temperature_C"].append(sim.disc[T_FRIC].reshape(n, -1) - KELVIN)
-        self.rows["disc_temperature_C"].append(sim.disc[T_DISC].reshape(n, -1) - KELVIN)
+        self.rows["clamp_force_N"].append(sim.to_external(clamp))
+        self.rows["mu"].append(sim.to_external(sim.disc[MU]))
+        self.rows["friction_temperature_C"].append(sim.to_external(sim.disc[T_FRIC]) - KELVIN)
+        self.rows["disc_temperature_C"].append(sim.to_external(sim.disc[T_DISC]) - KELVIN)
 
     def after_step(self, sim: Simulator) -> None:
         if sim.step_index % self.every == 0:
@@ -174,8 +173,7 @@ def run_stops(
 ) -> StopSummary:
     """Step ``sim`` until every train stands still (or until ``until_time_s``), calling
     ``command(sim)`` before each step to set the brake commands."""
-    metrics = StopMetrics(nominal_clamp_force_N)
-    metrics.start(sim)
+    metrics = StopMetrics(sim, nominal_clamp_force_N)
     recorder = _TrajectoryRecorder(sim, record_every) if record_every else None
     initial_energy = 0.5 * sim.mass_kg * sim.train[SPEED] ** 2
     initial_heat = _stored_heat_J(sim)
@@ -203,7 +201,6 @@ def run_stops(
                 progress(stopped - stopped_before)
                 stopped_before = stopped
 
-    n = sim.n_trains
     stop_distance = sim.train[POSITION].copy()
     return StopSummary(
         stop_time_s=sim.stop_time_s.copy(),
@@ -211,17 +208,17 @@ def run_stops(
         braking_time_s=sim.stop_time_s - command.command_time_s,
         braking_distance_m=stop_distance - command.position_at_command_m,
         onset_distance_m=metrics.distance_after_onset_m(sim),
-        mu_s=metrics.mean_mu_over_distance(sim).reshape(n, -1),
+        mu_s=metrics.mean_mu_over_distance(sim),
         mu_s_eff=metrics.effective_mu_over_distance(sim),
-        peak_friction_temperature_C=metrics.peak_friction_temperature_K.reshape(n, -1) - KELVIN,
-        peak_disc_temperature_C=metrics.peak_disc_temperature_K.reshape(n, -1) - KELVIN,
+        peak_friction_temperature_C=sim.to_external(metrics.peak_friction_temperature_K) - KELVIN,
+        peak_disc_temperature_C=sim.to_external(metrics.peak_disc_temperature_K) - KELVIN,
         initial_kinetic_energy_J=initial_energy,
         brake_work_J=sim.train[BRAKE_WORK].copy(),
         resistance_work_J=sim.train[RESISTANCE_WORK].copy(),
         extra_work_J=sim.train[EXTRA_WORK].copy(),
-        friction_heat_J=sim.disc[FRICTION_HEAT].reshape(n, -1).copy(),
-        stored_heat_J=(_stored_heat_J(sim) - initial_heat).reshape(n, -1),
-        cooling_heat_J=sim.disc[COOLING_HEAT].reshape(n, -1).copy(),
+        friction_heat_J=sim.to_external(sim.disc[FRICTION_HEAT]),
+        stored_heat_J=sim.to_external(_stored_heat_J(sim) - initial_heat),
+        cooling_heat_J=sim.to_external(sim.disc[COOLING_HEAT]),
         trajectory=recorder.result() if recorder else None,
     )
 

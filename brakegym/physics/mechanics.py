@@ -25,9 +25,11 @@ def brake_force_N(
     """Retarding force at the wheel-rail contact of each train: sum over its discs of
     mu_i F_C,i r_fric / r_wheel (Eq. 11, the brake torque over the wheel radius).
 
-    ``friction_force_N`` is mu F_C per disc, shape (trains, axles, discs per axle).
+    ``friction_force_N`` is mu F_C per disc with the trains on the last axis, e.g.
+    (axles, discs per axle, trains); the result is (trains,).
     """
-    return friction_force_N.sum(axis=(-2, -1)) * (friction_radius_m / wheel_radius_m)
+    per_disc = friction_force_N.reshape(-1, friction_force_N.shape[-1])
+    return per_disc.sum(axis=0) * (friction_radius_m / wheel_radius_m)
 
 
 @dataclass(frozen=True)
