@@ -11,7 +11,6 @@ and the offending value.
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 from typing import Any, Literal, TypeVar
@@ -20,9 +19,6 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 CONFIG_DIR_ENV = "BRAKEGYM_CONFIG_DIR"
-
-PositiveFloat = float
-
 
 class ConfigError(ValueError):
     """A configuration file or value is invalid; the message names file, field and value."""
@@ -326,9 +322,12 @@ def _describe_validation_error(path: Path, error: ValidationError) -> str:
     for item in error.errors():
         field = ".".join(str(part) for part in item["loc"]) or "(top level)"
         value = item.get("input")
-        shown = "(missing)" if item["type"] == "missing" else repr(value)
-        if isinstance(value, dict):
+        if item["type"] == "missing":
+            shown = "(missing)"
+        elif isinstance(value, dict):
             shown = "{...}"
+        else:
+            shown = repr(value)
         lines.append(f"  field '{field}' = {shown}: {item['msg']}")
     return "\n".join(lines)
 
@@ -385,9 +384,3 @@ def kmh_to_mps(speed_kmh: float) -> float:
 
 def celsius_to_kelvin(temperature_C: float) -> float:
     return temperature_C + 273.15
-
-
-def require_finite(value: float, where: str) -> float:
-    if not math.isfinite(value):
-        raise ConfigError(f"{where} = {value!r}: must be a finite number")
-    return value

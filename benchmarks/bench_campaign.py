@@ -1,0 +1,77 @@
+"""Speed of the batched simulator against the solve_ivp baseline, measured in one run.
+
+    python benchmarks/bench_campaign.py [--baseline-stops 40] [--step 0.2]
+
+Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs) with
+1 and 2 worker processes, then a sample of the same stops (same draws) one ``solve_ivp`` call
+each, and prints wall times, disc-steps per second and the per-disc-stop speed ratio, with the
+largest difference in stop distance between the two. Timings on a shared machine vary from run to
+run; the ratio is measured within one run for that reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from solve_ivp_baseline import solve_ivp_stop  # noqa: E402
+
+from brakegym import config as cfg  # noqa: E402
+from brakegym.applications import DEFAULT_STEP_S  # noqa: E402
+from brakegym.campaigns import field_applications, train_monte_carlo  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--baseline-stops", type=int, default=40)
+    parser.add_argument("--step", type=float, default=DEFAULT_STEP_S)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+
+    campaign = cfg.load("campaigns", "field2022")
+    vehicle = cfg.load("vehicles", campaign.vehicle)
+    setup = cfg.load("setups", "mcs-75-25")
+    apps = [app for app in field_applications(campaign) for _ in range(campaign.repetitions)]
+    n_discs = vehicle.n_discs
+
+    timings = {}
+    for workers in (1, 2):
+        start = time.perf_counter()
+        summary, draw, resistance = train_monte_carlo(vehicle, apps, setup, args.seed, args.step, workers=workers)
+        timings[workers] = time.perf_counter() - start
+    disc_steps = float(np.ceil(summary.stop_time_s / args.step).sum() * n_discs)
+
+    rng = np.random.default_rng(0)
+    sample = rng.choice(len(apps), size=args.baseline_stops, replace=False)
+    start = time.perf_counter()
+    baseline = [
+        solve_ivp_stop(vehicle, apps[i], draw.initial_mu[i], draw.power_coefficient_per_s[i], float(resistance[i]), rtol=1e-6)
+        for i in sample
+    ]
+    baseline_time = time.perf_counter() - start
+    baseline_per_stop = baseline_time / len(sample)
+    difference = max(abs(d - summary.stop_distance_m[i]) / d for (_, d), i in zip(baseline, sample))
+
+    stops = len(apps)
+    print(f"field campaign MCS-75/25: {stops} train stops x {n_discs} discs, step {args.step} s")
+    for workers, seconds in timings.items():
+        per_disc_stop = seconds / (stops * n_discs)
+        print(
+            f"  batched, {workers} process(es): {seconds:6.2f} s   {disc_steps / seconds:12,.0f} disc-steps/s   "
+            f"{1e6 * per_disc_stop:7.2f} us per disc-stop   ratio vs solve_ivp {baseline_per_stop / n_discs / per_disc_stop:6.1f}x"
+        )
+    print(
+        f"  solve_ivp baseline (RK45, rtol 1e-6), {len(sample)} stops: {1e3 * baseline_per_stop:.1f} ms per stop, "
+        f"{1e6 * baseline_per_stop / n_discs:.1f} us per disc-stop, extrapolated {baseline_per_stop * stops:.0f} s for the campaign"
+    )
+    print(f"  largest stop-distance difference batched vs solve_ivp: {100 * difference:.3f} %")
+
+
+if __name__ == "__main__":
+    main()

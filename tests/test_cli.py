@@ -1,0 +1,100 @@
+"""The command line: public JSON keys, and clear errors with exit status 2 for bad input."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from brakegym.cli import main
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "brakegym.cli", *args], capture_output=True, text=True, timeout=300)
+
+
+def test_dyno_case_json(tmp_path):
+    out = tmp_path / "out.json"
+    assert main(["dyno", "--case", "V0100_Case1", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert set(data) == {"load_case", "s_m", "s2_m", "mu_s", "t_stop_s", "T_fric_max_C"}
+    assert data["load_case"] == "V0100_Case1"
+    assert data["s_m"] == pytest.approx(433.8256, rel=0.005)
+
+
+def test_dyno_all_cases(tmp_path, capsys):
+    out = tmp_path / "all.json"
+    assert main(["dyno", "--json", str(out)]) == 0
+    assert len(json.loads(out.read_text())) == 12
+    assert "V0160_Case3" in capsys.readouterr().out
+
+
+def test_simulate_json(tmp_path):
+    out = tmp_path / "stop.json"
+    args = ["simulate", "--vehicle", "emu_8axle", "--load", "empty", "--mode", "emergency", "--actuation", "EP", "--v0", "120", "--json", str(out)]
+    assert main(args) == 0
+    data = json.loads(out.read_text())
+    assert data["stop_distance_m"] == pytest.approx(589.3, rel=0.005)
+    assert data["stop_time_s"] == pytest.approx(32.9, rel=0.005)
+
+
+def test_simulate_with_scatter_is_seeded(tmp_path):
+    results = []
+    for seed in (4, 4, 5):
+        out = tmp_path / f"s{seed}_{len(results)}.json"
+        assert main(["simulate", "--v0", "100", "--setup", "mcs-100", "--seed", str(seed), "--json", str(out)]) == 0
+        results.append(json.loads(out.read_text())["stop_distance_m"])
+    assert results[0] == results[1] != results[2]
+
+
+def test_mcs_field_json_and_figures(tmp_path):
+    out = tmp_path / "field.json"
+    figures = tmp_path / "fig"
+    result = run_cli("mcs", "--campaign", "field", "--setup", "ds", "--seed", "1", "--json", str(out), "--figures", str(figures))
+    assert result.returncode == 0, result.stderr
+    data = json.loads(out.read_text())
+    assert data["applications"] == 4400 and data["setup"] == "ds"
+    assert len(data["field_applications"]) == 88
+    assert sorted(p.name for p in figures.glob("*.png")) == ["fig15_mu_eff.png", "fig16_braking_distance.png"]
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["simulate", "--v0", "-5"], "--v0 must be a positive finite number, got '-5'"),
+        (["simulate", "--v0", "nan"], "--v0 must be a positive finite number"),
+        (["simulate", "--v0", "120", "--vehicle", "tgv"], "unknown vehicle 'tgv'"),
+        (["simulate", "--v0", "120", "--load", "crush"], "unknown load 'crush'"),
+        (["simulate", "--v0", "120", "--mode", "parking"], "unknown brake mode 'parking'"),
+        (["simulate", "--v0", "120", "--actuation", "XX"], "unknown pneumatic 'XX'"),
+        (["simulate", "--v0", "120", "--step", "0.15"], "dead time 0.2 s is not a whole number of time steps of 0.15 s"),
+        (["simulate", "--v0", "120", "--command-time", "-1"], "--command-time must be a non-negative"),
+        (["mcs", "--campaign", "dyno", "--setup", "mcs-50"], "unknown setup 'mcs-50'"),
+        (["mcs", "--campaign", "train"], "invalid choice: 'train'"),
+        (["mcs", "--campaign", "dyno", "--seed", "-1"], "--seed must not be negative"),
+        (["dyno", "--case", "V0999_Case9"], "unknown load case 'V0999_Case9'"),
+    ],
+)
+def test_bad_arguments_exit_2_with_message(args, message, capsys):
+    try:
+        status = main(args)
+    except SystemExit as exit_:  # argparse's own errors
+        status = exit_.code
+    assert status == 2
+    assert message in capsys.readouterr().err
+
+
+def test_bad_config_file_exit_2(tmp_path, monkeypatch):
+    import shutil
+    from pathlib import Path
+
+    configs = tmp_path / "configs"
+    shutil.copytree(Path(__file__).resolve().parent.parent / "configs", configs)
+    path = configs / "pneumatics" / "EP.yaml"
+    path.write_text(path.read_text().replace("time_constant_s: 0.8", "time_constant_s: -0.8"))
+    result = subprocess.run(
+        [sys.executable, "-m", "brakegym.cli", "simulate", "--v0", "100"],
+        capture_output=True, text=True, env={**__import__("os").environ, "BRAKEGYM_CONFIG_DIR": str(configs)},
+    )
+    assert result.returncode == 2
+    assert str(path) in result.stderr and "time_constant_s" in result.stderr and "-0.8" in result.stderr
