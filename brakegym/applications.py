@@ -8,7 +8,7 @@ summaries (and time series on request).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -151,7 +151,6 @@ class StopSummary:
     stored_heat_J: np.ndarray  # (B, discs), C dT of both capacities at the end
     cooling_heat_J: np.ndarray  # (B, discs), heat given to the air
     trajectory: Trajectory | None = None
-    final_state: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def mean_mu_s(self) -> np.ndarray:

@@ -340,7 +340,7 @@ def train_monte_carlo(
     merged = {
         name: _scatter_back(n, indices, [getattr(p, name) for p in parts])
         for name in StopSummary.__dataclass_fields__
-        if name not in ("trajectory", "final_state")
+        if name != "trajectory"
     }
     return StopSummary(**merged), draw, resistance
 

@@ -169,7 +169,7 @@ def cmd_mcs(args: argparse.Namespace) -> int:
 
     setup = cfg.load("setups", args.setup)
     if args.campaign == "dyno":
-        rig = cfg.load("rigs", "dynamometer")
+        rig = cfg.load("rigs", cfg.load("campaigns", "dyno2022").rig)
         total = len(campaigns.dyno_applications(rig))
         with _progress(total, "dyno campaign") as bar:
             result = campaigns.dyno_campaign(rig, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update)
