@@ -290,6 +290,39 @@ class DynoCampaign(_Strict):
     rig: str
 
 
+class EffectConfig(_Strict):
+    """One effect of :mod:`brakegym.recordings.effects` switched on, with every parameter given."""
+
+    id: str
+    parameters: dict[str, float]
+
+    @model_validator(mode="after")
+    def _known_effect(self) -> "EffectConfig":
+        # The library defines the ids, parameter names and bounds; imported here, not at the top,
+        # because it builds on the simulator, which builds on this module.
+        from .recordings.effects import validate_effect_config
+
+        validate_effect_config(self.id, self.parameters)
+        return self
+
+
+class EffectSet(_Strict):
+    """A set of effects that modify the nominal model (``configs/effects/``): usable in the
+    simulator and the environments through ``brakegym.recordings.effects.load_effects``."""
+
+    name: str
+    description: str = ""
+    effects: list[EffectConfig]
+
+    @model_validator(mode="after")
+    def _each_effect_once(self) -> "EffectSet":
+        ids = [effect.id for effect in self.effects]
+        repeated = sorted({i for i in ids if ids.count(i) > 1})
+        if repeated:
+            raise ValueError(f"effects: {repeated} appear more than once")
+        return self
+
+
 KINDS: dict[str, type[BaseModel]] = {
     "materials": FrictionMaterial,
     "discs": DiscThermal,
@@ -298,6 +331,7 @@ KINDS: dict[str, type[BaseModel]] = {
     "vehicles": Vehicle,
     "setups": ScatterSetup,
     "campaigns": FieldCampaign,
+    "effects": EffectSet,
 }
 
 M = TypeVar("M", bound=BaseModel)

@@ -1,0 +1,478 @@
+"""Synthetic recording sets with concealed effects (``brakegym synth``).
+
+A set is a campaign of brake applications of ``emu_8axle``, simulated with the physics a real
+train would add to the nominal model, and written as recordings (``format``) that look measured.
+The answer key (which effects, their parameters, the per-application truth) is written apart from
+the recordings: a diagnosis reading the folder cannot see it.
+
+What varies, per application (from the seed):
+
+- initial speed uniform 60..160 km/h; load, brake mode (emergency/service), actuation (EP/PN) and
+  pad set uniform over their values; the mode's cylinder pressure for the load with a per-axle
+  spread of 1 % (real axles differ; the recording measures each);
+- a coasting phase of 4..10 s before the brake command (running resistance and gradient act
+  alone there, which separates them from the brake), and 2..5 s of standstill after the stop;
+- ambient 0..30 degC, initial disc temperature ambient + 0..60 K (earlier braking);
+- friction scatter MCS-75/25 (``brakegym.physics.scatter``) and the running-resistance scatter
+  A ~ N(A, sigma_A);
+- per set: the deceleration source (accelerometer with probability 3/4, else differentiated
+  speed); the instrumented disc is disc 1 (the front axle's first disc).
+
+Sensors (``SENSOR_NOISE``; white Gaussian, independent per sample):
+
+| channel | noise (1 sigma) | resolution | notes |
+|---|---|---|---|
+| ``speed_mps`` | 0.03 m/s | 0.001 | a pulse sensor: reports the magnitude, exactly 0 at standstill |
+| ``decel_mps2`` | 0.02 (accelerometer), 0.03 (from speed) m/s^2 | 0.001 | |
+| ``T_disc_C`` | 1.0 K | 0.01 | |
+| ``position_m`` | 0.05 m | 0.001 | |
+| ``p_c_bar_i`` | 0.02 bar | 0.001 | a 0..10 bar transducer: its output saturates at its range |
+
+Samples at 10 Hz with +-10 ms timing jitter (uneven sampling), and 0.2 % of the cells of the
+optional channels blank (dropouts; never on the first line).
+
+The truth is integrated at ``TRUTH_STEP_S`` = 0.05 s with the cylinder pressure following the
+command exactly (dead time and lag), finer than a replay's 0.1 s, so that a replay carries a small
+genuine model error of its own, as against real data.
+
+``base_offset``: the base model is moved within its own scatter for the whole set (the running
+resistance: A by 0.5..1 sigma_A, B and C by up to +-20 %; or the friction: nominal mu_0 and a by
+0.5..1 sigma of their scatter), which a diagnosis must not label an effect.
+
+Everything is drawn from one seed through independent streams (campaign, scatter, effects, base
+offset, noise), so the same seed writes the same files byte for byte, and a set with an effect
+has the same applications and noise as the set without it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from .. import config as cfg
+from ..applications import CommandSchedule
+from ..physics import BrakeCylinder, RunningResistance, draw_friction, draw_running_resistance
+from ..simulator import BatchConditions, CommandedPressure
+from .effects import EFFECTS, KELVIN, Effect, RunningResistanceEffect, apply_effects, effect_class
+from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, Recording, RecordingMetadata, pressure_column, write_recording
+from .measurement import MeasurementModel
+from .replay import plant_for, simulate_grid
+
+VEHICLE = "emu_8axle"
+SCATTER_SETUP = "mcs-75-25"
+TRUTH_STEP_S = 0.05
+SAMPLE_INTERVAL_S = 0.1
+SAMPLE_JITTER_S = 0.01
+DROPOUT_PROBABILITY = 0.002
+INSTRUMENTED_DISC = 1
+SPEED_RANGE_KMH = (60.0, 160.0)
+COASTING_RANGE_S = (4.0, 10.0)
+STANDSTILL_RANGE_S = (2.0, 5.0)
+AMBIENT_RANGE_C = (0.0, 30.0)
+INITIAL_DISC_EXCESS_RANGE_K = (0.0, 60.0)
+AXLE_PRESSURE_SPREAD = 0.01
+ACCELEROMETER_PROBABILITY = 0.75
+PRESSURE_TRANSDUCER_RANGE_BAR = (0.0, 10.0)
+SENSOR_NOISE = {
+    SPEED: 0.03,
+    "decel_mps2_accelerometer": 0.02,
+    "decel_mps2_speed": 0.03,
+    DISC_TEMPERATURE: 1.0,
+    POSITION: 0.05,
+    "p_c_bar": 0.02,
+}
+RESOLUTION = {TIME: 1e-3, SPEED: 1e-3, DECEL: 1e-3, DISC_TEMPERATURE: 1e-2, POSITION: 1e-3, "p_c_bar": 1e-3}
+MAX_EFFECTS = 2
+
+
+@dataclass(frozen=True)
+class EffectRequest:
+    """An effect to switch on; parameters not given are drawn within their synth ranges."""
+
+    id: str
+    parameters: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        cls = effect_class(self.id)
+        names = [p.name for p in cls.parameters]
+        unknown = sorted(set(self.parameters) - set(names))
+        if unknown:
+            raise ValueError(f"effect {self.id!r}: unknown parameter(s) {unknown}; its parameters are {names}")
+        for name, value in self.parameters.items():
+            cls.spec(name).check(self.id, value)
+
+    @classmethod
+    def parse(cls, text: str) -> "EffectRequest":
+        """``ID`` or ``ID:name=value[,name=value...]``, e.g. ``gradient:gradient_permil=-5.8``."""
+        effect_id, _, rest = text.partition(":")
+        parameters: dict[str, float] = {}
+        for item in filter(None, (part.strip() for part in rest.split(","))):
+            name, equals, value = item.partition("=")
+            if not equals:
+                raise ValueError(f"effect {text!r}: expected name=value, got {item!r}")
+            try:
+                parameters[name.strip()] = float(value)
+            except ValueError:
+                raise ValueError(f"effect {text!r}: parameter {name.strip()!r} = {value!r} is not a number") from None
+            if not math.isfinite(parameters[name.strip()]):
+                raise ValueError(f"effect {text!r}: parameter {name.strip()!r} = {value!r} is not finite")
+        return cls(effect_id.strip(), parameters)
+
+
+def _draw_parameter(rng: np.random.Generator, spec) -> float:
+    low, high = spec.synth_ranges[int(rng.integers(len(spec.synth_ranges)))]
+    if spec.integer:
+        return float(rng.integers(int(low), int(high) + 1))
+    # Rounded to 4 significant digits: the key reads like a specification, not like noise.
+    return float(f"{rng.uniform(low, high):.4g}")
+
+
+def resolve_effects(requests: Sequence[EffectRequest], rng: np.random.Generator) -> tuple[list[Effect], list[dict[str, Any]]]:
+    """The effects with every parameter set (drawn where not given), and their key entries."""
+    effects, entries = [], []
+    for request in requests:
+        cls = effect_class(request.id)
+        values, drawn = {}, []
+        for spec in cls.parameters:
+            # Always draw, so that giving one parameter does not shift the stream for the others.
+            candidate = _draw_parameter(rng, spec)
+            if spec.name in request.parameters:
+                values[spec.name] = float(request.parameters[spec.name])
+            else:
+                values[spec.name] = candidate
+                drawn.append(spec.name)
+        effects.append(cls(**values))
+        entries.append({"id": cls.id, "parameters": values, "drawn": drawn})
+    return effects, entries
+
+
+def random_requests(rng: np.random.Generator) -> list[EffectRequest]:
+    """Zero, one or two effects of the library, equally likely counts, distinct ids."""
+    count = int(rng.integers(MAX_EFFECTS + 1))
+    ids = list(EFFECTS)
+    chosen = rng.choice(len(ids), size=count, replace=False)
+    return [EffectRequest(ids[int(i)]) for i in sorted(chosen)]
+
+
+@dataclass
+class Application:
+    stem: str
+    initial_speed_kmh: float
+    load: str
+    brake_mode: str
+    actuation: str
+    pad_set: str
+    command_time_s: float
+    standstill_s: float
+    ambient_C: float
+    initial_disc_C: float
+    axle_pressure_bar: np.ndarray
+
+
+def _round(values: np.ndarray, resolution: float) -> np.ndarray:
+    # Snap to the resolution and print-round, so the CSV holds short decimals.
+    return np.round(np.round(values / resolution) * resolution, 6)
+
+
+def draw_applications(rng: np.random.Generator, vehicle: cfg.Vehicle, n: int) -> list[Application]:
+    loads = sorted(vehicle.loads)
+    modes = sorted(vehicle.brake_pressures_bar)
+    actuations = ["EP", "PN"]
+    applications = []
+    for i in range(n):
+        load = loads[int(rng.integers(len(loads)))]
+        mode = modes[int(rng.integers(len(modes)))]
+        ambient = round(float(rng.uniform(*AMBIENT_RANGE_C)), 1)
+        spread = 1.0 + AXLE_PRESSURE_SPREAD * rng.standard_normal(vehicle.n_axles)
+        applications.append(
+            Application(
+                stem=f"rec_{i + 1:03d}",
+                initial_speed_kmh=round(float(rng.uniform(*SPEED_RANGE_KMH)), 1),
+                load=load,
+                brake_mode=mode,
+                actuation=actuations[int(rng.integers(2))],
+                pad_set=str(int(rng.integers(1, 3))),
+                # On the truth grid, so the command switches at a step.
+                command_time_s=round(float(rng.uniform(*COASTING_RANGE_S)), 1),
+                standstill_s=round(float(rng.uniform(*STANDSTILL_RANGE_S)), 1),
+                ambient_C=ambient,
+                initial_disc_C=round(ambient + float(rng.uniform(*INITIAL_DISC_EXCESS_RANGE_K)), 1),
+                axle_pressure_bar=np.round(vehicle.brake_pressure_bar(mode, load) * spread, 4),
+            )
+        )
+    return applications
+
+
+def _draw_base_offset(rng: np.random.Generator, vehicle: cfg.Vehicle, material: cfg.FrictionMaterial, allowed: Sequence[str]) -> dict[str, Any]:
+    # Both kinds' numbers are always drawn so the stream does not depend on the choice.
+    kind_index = int(rng.integers(2))
+    sign = np.where(rng.random(2) < 0.5, -1.0, 1.0)
+    size = rng.uniform(0.5, 1.0, size=2)
+    factors = rng.uniform(0.8, 1.2, size=2)
+    kind = ("running_resistance", "friction")[kind_index]
+    if kind not in allowed:
+        kind = allowed[0]
+    if kind == "running_resistance":
+        resistance = vehicle.running_resistance
+        return {
+            "kind": kind,
+            "A_shift_N": round(float(sign[0] * size[0] * resistance.A_sigma_N), 1),
+            "B_factor": round(float(factors[0]), 4),
+            "C_factor": round(float(factors[1]), 4),
+        }
+    scatter = material.scatter
+    return {
+        "kind": kind,
+        "initial_mu_shift": round(float(sign[0] * size[0] * scatter.initial_mu_sigma), 5),
+        "power_coefficient_shift_per_s": round(float(sign[1] * size[1] * scatter.power_coefficient_sigma_per_s), 6),
+    }
+
+
+@dataclass
+class SynthResult:
+    recordings: list[Recording]
+    key: dict[str, Any]
+    folder: Path
+    key_path: Path
+
+
+def default_key_path(out_dir: Path) -> Path:
+    """``OUT_DIR/../<name>_key.json``: beside the recordings folder, not in it."""
+    out_dir = Path(out_dir)
+    return out_dir.resolve().parent / f"{out_dir.resolve().name}_key.json"
+
+
+def synthesize(
+    out_dir: str | Path,
+    n_recordings: int,
+    seed: int,
+    effects: Sequence[EffectRequest] = (),
+    random_effects: bool = False,
+    base_offset: bool = False,
+    key_path: str | Path | None = None,
+    noise_scale: float = 1.0,
+    scatter_setup: str = SCATTER_SETUP,
+) -> SynthResult:
+    """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
+    (default :func:`default_key_path`).
+
+    ``noise_scale`` multiplies every sensor noise level (0: noise-free, for checking a replay;
+    larger for robustness); ``scatter_setup`` names the friction scatter set-up (``ds``: none,
+    and no running-resistance scatter either)."""
+    if not (math.isfinite(noise_scale) and noise_scale >= 0):
+        raise ValueError(f"noise scale {noise_scale}: must be a non-negative finite number")
+    out_dir = Path(out_dir)
+    key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
+    if n_recordings < 1:
+        raise ValueError(f"--recordings {n_recordings}: need at least 1")
+    if len(effects) > MAX_EFFECTS:
+        raise ValueError(f"{len(effects)} effects given; a set holds at most {MAX_EFFECTS}")
+    if random_effects and effects:
+        raise ValueError("give either effects or random effects, not both")
+    ids = [e.id for e in effects]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"effect ids {ids} repeat")
+    if out_dir.resolve() in key_path.resolve().parents:
+        raise ValueError(f"the key {key_path} must not lie inside the recordings folder {out_dir}")
+    if out_dir.exists() and any(p.suffix in (".csv", ".json") for p in out_dir.iterdir()):
+        raise ValueError(f"{out_dir} already holds recordings; write a new set into an empty folder")
+
+    campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed = np.random.SeedSequence(seed).spawn(5)
+    campaign_rng, scatter_rng, effect_rng, offset_rng = (
+        np.random.default_rng(s) for s in (campaign_seed, scatter_seed, effect_seed, offset_seed)
+    )
+    # One noise seed per recording and channel: sample k of a recording gets the same noise
+    # whatever the length of the recording or of the others.
+    noise_seeds = noise_seed.spawn(n_recordings)
+    vehicle = cfg.load("vehicles", VEHICLE)
+    material = cfg.load("materials", vehicle.material)
+    setup = cfg.load("setups", scatter_setup)
+    plant = plant_for(vehicle)
+
+    requests = random_requests(effect_rng) if random_effects else list(effects)
+    chosen, effect_entries = resolve_effects(requests, effect_rng)
+
+    applications = draw_applications(campaign_rng, vehicle, n_recordings)
+    decel_source = "accelerometer" if campaign_rng.random() < ACCELEROMETER_PROBABILITY else "speed"
+    n = n_recordings
+    draw = draw_friction(scatter_rng, material, setup, n, plant.disc_shape)
+    drawn_A = draw_running_resistance(scatter_rng, vehicle.running_resistance, setup, n)
+    scatter_A = drawn_A - vehicle.running_resistance.A_N
+
+    offset: dict[str, Any] | None = None
+    initial_mu, power_coefficient = draw.initial_mu, draw.power_coefficient_per_s
+    resistance_A = drawn_A
+    if base_offset:
+        has_resistance_effect = any(isinstance(e, RunningResistanceEffect) for e in chosen)
+        allowed = ["friction"] if has_resistance_effect else ["running_resistance", "friction"]
+        offset = _draw_base_offset(offset_rng, vehicle, material, allowed)
+        if offset["kind"] == "running_resistance":
+            nominal = vehicle.running_resistance
+            resistance_A = drawn_A + offset["A_shift_N"]
+            plant = dataclasses.replace(
+                plant,
+                running_resistance=RunningResistance(
+                    A_N=nominal.A_N + offset["A_shift_N"],
+                    B_N_per_mps=nominal.B_N_per_mps * offset["B_factor"],
+                    C_N_per_mps2=nominal.C_N_per_mps2 * offset["C_factor"],
+                ),
+            )
+        else:
+            initial_mu = initial_mu + offset["initial_mu_shift"]
+            power_coefficient = power_coefficient + offset["power_coefficient_shift_per_s"]
+
+    disc_shape = (n, *plant.disc_shape)
+    initial_K = np.array([a.initial_disc_C for a in applications]) + KELVIN
+    conditions = BatchConditions(
+        mass_kg=np.array([vehicle.mass_kg(a.load) for a in applications]),
+        initial_speed_mps=np.array([cfg.kmh_to_mps(a.initial_speed_kmh) for a in applications]),
+        initial_mu=initial_mu,
+        power_coefficient_per_s=power_coefficient,
+        running_resistance_A_N=resistance_A,
+        initial_friction_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
+        initial_disc_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
+        ambient_temperature_K=np.array([a.ambient_C for a in applications]) + KELVIN,
+    )
+    model = apply_effects(plant, conditions, chosen)
+    if any(isinstance(e, RunningResistanceEffect) for e in chosen):
+        # The effect sets the set's running resistance; each application still scatters around it.
+        model.conditions = dataclasses.replace(
+            model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + scatter_A
+        )
+
+    cylinders = [BrakeCylinder.from_config(cfg.load("pneumatics", a.actuation)) for a in applications]
+    pressure = CommandedPressure(cylinders, plant.n_axles, TRUTH_STEP_S)
+    command = np.stack([a.axle_pressure_bar for a in applications])
+    command_time = np.array([a.command_time_s for a in applications])
+    schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
+    end_after_stop = np.array([a.standstill_s for a in applications])
+
+    def finished(sim) -> bool:
+        return bool(not sim.moving.any() and np.all(sim.time_s >= sim.stop_time_s + end_after_stop))
+
+    grid = simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
+
+    recordings = []
+    truth_rows = []
+    for b, app in enumerate(applications):
+        stop = float(grid.stop_time_s[b])
+        record = _measure(app, b, grid, model, cylinders[b], decel_source, stop, noise_seeds[b], vehicle, noise_scale)
+        write_recording(record, out_dir)
+        recordings.append(record)
+        truth_rows.append(
+            {
+                "stem": app.stem,
+                "initial_speed_kmh": app.initial_speed_kmh,
+                "load": app.load,
+                "brake_mode": app.brake_mode,
+                "actuation": app.actuation,
+                "command_time_s": app.command_time_s,
+                "stop_time_s": round(stop, 4),
+                "braking_distance_m": round(float(np.interp(stop, grid.time_s, grid.position_m[:, b]) - np.interp(app.command_time_s, grid.time_s, grid.position_m[:, b])), 3),
+                "running_resistance_A_N": round(float(np.asarray(model.conditions.running_resistance_A_N)[b]), 2),
+                "mean_initial_mu": round(float(initial_mu[b].mean()), 5),
+                "mean_power_coefficient_per_s": round(float(power_coefficient[b].mean()), 6),
+                "initial_disc_C": app.initial_disc_C,
+                "ambient_C": app.ambient_C,
+                "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
+            }
+        )
+
+    key = {
+        "generator": f"brakegym synth {__version__}",
+        "seed": seed,
+        "recordings": n,
+        "vehicle": VEHICLE,
+        "effects": effect_entries,
+        "expected_selected": [entry["id"] for entry in effect_entries],
+        "base_offset": offset,
+        "base_offset_note": None
+        if offset is None
+        else "the base model is moved within its own scatter: not an effect, must not be selected",
+        "scatter_setup": scatter_setup,
+        "running_resistance_scatter_sigma_N": vehicle.running_resistance.A_sigma_N if setup.resistance_scatter else 0.0,
+        "decel_source": decel_source,
+        "instrumented_disc": INSTRUMENTED_DISC,
+        "sensor_noise": {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()},
+        "sample_interval_s": SAMPLE_INTERVAL_S,
+        "sample_jitter_s": SAMPLE_JITTER_S,
+        "dropout_probability": DROPOUT_PROBABILITY,
+        "truth_step_s": TRUTH_STEP_S,
+        "applications": truth_rows,
+    }
+    key_path.parent.mkdir(parents=True, exist_ok=True)
+    key_path.write_text(json.dumps(key, indent=2) + "\n")
+    return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
+
+
+def _cylinder_pressure_bar(app: Application, cylinder: BrakeCylinder, time_s: np.ndarray) -> np.ndarray:
+    """The exact cylinder response to the command: nothing before command + dead time, then the
+    first-order lag towards the commanded pressure (what the truth simulation integrates)."""
+    elapsed = np.maximum(time_s - app.command_time_s - cylinder.dead_time_s, 0.0)
+    return app.axle_pressure_bar[None, :] * (1.0 - np.exp(-elapsed / cylinder.time_constant_s))[:, None]
+
+
+def _measure(
+    app: Application,
+    index: int,
+    grid,
+    model,
+    cylinder: BrakeCylinder,
+    decel_source: str,
+    stop_time_s: float,
+    noise_seed: np.random.SeedSequence,
+    vehicle: cfg.Vehicle,
+    noise_scale: float,
+) -> Recording:
+    noise = {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()}
+    streams = [np.random.default_rng(s) for s in noise_seed.spawn(7)]
+    end = stop_time_s + app.standstill_s
+    n_samples = int(math.floor(end / SAMPLE_INTERVAL_S)) + 1
+    jitter = streams[0].uniform(-SAMPLE_JITTER_S, SAMPLE_JITTER_S, size=n_samples)
+    jitter[0] = 0.0
+    time = _round(np.arange(n_samples) * SAMPLE_INTERVAL_S + jitter, RESOLUTION[TIME])
+    time = time[time <= end]
+    measurement = MeasurementModel(grid, index, model, decel_source, INSTRUMENTED_DISC)
+    true = measurement.channels(time)
+    n = len(time)
+    moving = time < stop_time_s
+
+    speed_noise = streams[1].standard_normal(n) * noise[SPEED]
+    decel_noise = streams[2].standard_normal(n) * noise[f"decel_mps2_{decel_source}"]
+    temperature_noise = streams[3].standard_normal(n) * noise[DISC_TEMPERATURE]
+    position_noise = streams[4].standard_normal(n) * noise[POSITION]
+    pressure_noise = streams[5].standard_normal((n, vehicle.n_axles)) * noise["p_c_bar"]
+    dropouts = streams[6].random((n, 3)) < DROPOUT_PROBABILITY
+    dropouts[0] = False
+
+    data: dict[str, np.ndarray] = {TIME: time}
+    # A pulse-counting speed sensor reports a magnitude, and nothing at all once the wheels stand.
+    data[SPEED] = _round(np.where(moving, np.abs(true[SPEED] + speed_noise), 0.0), RESOLUTION[SPEED])
+    low, high = PRESSURE_TRANSDUCER_RANGE_BAR
+    pressures = np.clip(_cylinder_pressure_bar(app, cylinder, time) + pressure_noise, low, high)
+    for axle in range(vehicle.n_axles):
+        data[pressure_column(axle + 1)] = _round(pressures[:, axle], RESOLUTION["p_c_bar"])
+    for column, (channel, noise) in enumerate(
+        ((DECEL, decel_noise), (DISC_TEMPERATURE, temperature_noise), (POSITION, position_noise))
+    ):
+        values = _round(true[channel] + noise, RESOLUTION[channel])
+        data[channel] = np.where(dropouts[:, column], np.nan, values)
+    metadata = RecordingMetadata(
+        vehicle=VEHICLE,
+        load=app.load,
+        brake_mode=app.brake_mode,
+        actuation=app.actuation,
+        instrumented_disc=INSTRUMENTED_DISC,
+        ambient_C=app.ambient_C,
+        decel_source=decel_source,
+        pad_set=app.pad_set,
+    )
+    return Recording(stem=app.stem, metadata=metadata, data=pd.DataFrame(data))
