@@ -77,9 +77,10 @@ class ParameterSpec:
         outside = ((array < self.lower) | (array > self.upper)) & ~absent
         if np.any(outside):
             shown = array[outside].flat[0]
+            unit = f" {self.unit}" if self.unit else ""
             raise ValueError(
-                f"effect {effect_id!r}: parameter {self.name!r} = {shown:g} {self.unit} lies outside its bounds "
-                f"{self.lower:g}..{self.upper:g} {self.unit}"
+                f"effect {effect_id!r}: parameter {self.name!r} = {shown:g}{unit} lies outside its bounds "
+                f"{self.lower:g}..{self.upper:g}{unit}"
             )
         if self.integer and np.any((array != np.round(array)) & ~absent):
             raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} must be a whole number")
