@@ -5,6 +5,7 @@
     brakegym simulate  one train stop
     brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
     brakegym trends    the paper's trends recomputed (README numbers)
+    brakegym synth     synthetic recordings with concealed effects (brakegym.recordings.cli)
 
 JSON keys written by ``dyno``, ``simulate`` and ``mcs`` are a public interface and stay stable.
 Errors in arguments or configs end with a message on stderr and exit status 2.
@@ -342,6 +343,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="write the trends as JSON")
     p.add_argument("--step", **step)
     p.set_defaults(func=cmd_trends)
+
+    from .recordings.cli import add_synth_command
+
+    add_synth_command(sub)
     return parser
 
 
