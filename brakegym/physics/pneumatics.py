@@ -19,6 +19,11 @@ from ..config import Caliper as CaliperConfig
 from ..config import Pneumatics
 
 
+def clamp_force_from_pressure_N(pressure_bar, gain_N_per_bar, threshold_bar):
+    """F_C = k_c max(p_c - p_0, 0) of one disc unit (spec Section 4)."""
+    return gain_N_per_bar * np.maximum(pressure_bar - threshold_bar, 0.0)
+
+
 @dataclass(frozen=True)
 class BrakeCylinder:
     dead_time_s: float
@@ -64,7 +69,7 @@ class Caliper:
         return cls(gain_N_per_bar=1.0, threshold_bar=0.0)
 
     def clamp_force_N(self, pressure_bar: np.ndarray) -> np.ndarray:
-        return self.gain_N_per_bar * np.maximum(pressure_bar - self.threshold_bar, 0.0)
+        return clamp_force_from_pressure_N(pressure_bar, self.gain_N_per_bar, self.threshold_bar)
 
     def pressure_for_clamp_force_bar(self, clamp_force_N: float) -> float:
         """The cylinder pressure that gives ``clamp_force_N`` (for commands stated as force)."""
