@@ -21,6 +21,7 @@ import pandas as pd
 from scipy import stats
 
 from . import config as cfg
+from . import kernel
 from .applications import DEFAULT_STEP_S, StopSummary, TrainApplication, Trajectory, dyno_stops, train_stops
 from .physics import FrictionDraw, draw_friction, draw_running_resistance
 
@@ -111,13 +112,15 @@ def _run_chunks(
     sizes: Sequence[int] | None = None,
 ) -> list[StopSummary]:
     """Run ``function(*arguments)`` for every job, in ``workers`` forked processes when more than
-    one (numpy holds the GIL between its many small calls, so threads gain little). Chunk
-    composition is fixed by the caller, so the results do not depend on ``workers``."""
+    one (the stop bookkeeping between the compiled steps holds the GIL, so threads gain little).
+    Chunk composition is fixed by the caller, so the results do not depend on ``workers``."""
     results: list[StopSummary] = []
     if workers <= 1 or len(jobs) == 1 or "fork" not in multiprocessing.get_all_start_methods():
         iterator = map(_call, jobs)
         pool = None
     else:
+        # Loaded once here, the compiled kernels are inherited by every forked worker.
+        kernel.warm_up()
         pool = multiprocessing.get_context("fork").Pool(min(workers, len(jobs)))
         iterator = pool.imap(_call, jobs)
     try:

@@ -7,7 +7,10 @@ numpy's inner loops run over the long, contiguous train axis (with the trains fi
 loops ran over two discs and the simulator was twice as slow). Interfaces (conditions, pressure
 sources, results) use trains-first arrays and are transposed at the edge.
 
-Integration is classic fixed-step RK4 (spec Section 3: 0.05 % at 0.1 s against the golden values).
+Integration is classic fixed-step RK4 (spec Section 3: 0.05 % at 0.1 s against the golden values),
+compiled (:mod:`brakegym.kernel`): one call per step without extension hooks, one per RK4 stage with
+them. :class:`NumpyReferenceSimulator` integrates the same equations with numpy array operations;
+it is the readable reference the compiled kernels are tested and benchmarked against.
 The brake-cylinder pressure is not an RK4 state: its lag is solved exactly within each step
 (:mod:`brakegym.physics.pneumatics`), which keeps the pneumatic response free of step error.
 Motion stops at v = 0 (no reversal); the stop instant is interpolated inside the step, and after it
@@ -30,8 +33,9 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
+from . import kernel
 from .physics import BrakeCylinder, Caliper, DiscThermalModel, FrictionLaw, RunningResistance
-from .physics.mechanics import brake_force_N
+from .physics.mechanics import brake_force_N, effective_mu
 
 # Rows of the packed per-disc state, shape (len(DISC_STATES), axles, discs per axle, trains).
 DISC_STATES = (
@@ -165,9 +169,17 @@ class CommandedPressure:
     ) -> None:
         n_trains = len(cylinders)
         self.step_s = step_s
-        self._dead_steps = np.array([c.dead_time_steps(step_s) for c in cylinders], dtype=np.int64)
-        self._half_lag = np.array([c.lag_factor(0.5 * step_s) for c in cylinders])[:, None]
-        self._full_lag = np.array([c.lag_factor(step_s) for c in cylinders])[:, None]
+        dead_steps = [c.dead_time_steps(step_s) for c in cylinders]
+        half_lag = [c.lag_factor(0.5 * step_s) for c in cylinders]
+        full_lag = [c.lag_factor(step_s) for c in cylinders]
+        self._dead_steps = np.array(dead_steps, dtype=np.int64)
+        # One kind of cylinder for the whole batch (the usual case) needs no per-train indexing
+        # and scalar lag factors: the same numbers, fewer array operations per step.
+        self._uniform = len(set(dead_steps)) == 1 and len(set(half_lag)) == 1 and len(set(full_lag)) == 1
+        if self._uniform:
+            self._half_lag, self._full_lag = half_lag[0], full_lag[0]
+        else:
+            self._half_lag, self._full_lag = np.array(half_lag)[:, None], np.array(full_lag)[:, None]
         self._pressure = np.broadcast_to(np.asarray(initial_pressure_bar, dtype=float), (n_trains, n_axles)).copy()
         # Ring buffer of past commands: the cylinder of train b sees the command given
         # dead_steps[b] steps ago. Before any command, the target is the initial pressure.
@@ -187,11 +199,16 @@ class CommandedPressure:
     def set_command(self, command_bar: np.ndarray) -> None:
         """Command per axle (B, A) from now on. Values are used as given: range checks belong to
         the caller, who knows where the command came from."""
-        self._command = np.broadcast_to(np.asarray(command_bar, dtype=float), self._pressure.shape).copy()
+        command = np.array(command_bar, dtype=float)  # a copy: the caller may reuse its array
+        if command.shape != self._pressure.shape:
+            command = np.broadcast_to(command, self._pressure.shape).copy()
+        self._command = command
 
     def _target(self) -> np.ndarray:
         slots = len(self._history)
         self._history[self._step % slots] = self._command
+        if self._uniform:
+            return self._history[(self._step - int(self._dead_steps[0])) % slots]
         return self._history[(self._step - self._dead_steps) % slots, self._rows]
 
     def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -257,7 +274,7 @@ class StepRecord:
 
 
 class Simulator:
-    """Fixed-step RK4 over a batch of trains (or dynamometer stops).
+    """Fixed-step RK4 over a batch of trains (or dynamometer stops), compiled.
 
     Parameters
     ----------
@@ -302,6 +319,10 @@ class Simulator:
         self.resistance_A_N = np.broadcast_to(np.asarray(conditions.running_resistance_A_N, dtype=float), (n,)).copy()
         self.power_coefficient = self.to_internal(conditions.power_coefficient_per_s)
         self.ambient_K = np.broadcast_to(np.asarray(conditions.ambient_temperature_K, dtype=float), (n,)).copy()
+        self._nominal_resistance_A_N = np.broadcast_to(
+            np.asarray(self.nominal_running_resistance.A_N, dtype=float), (n,)
+        ).copy()
+        self._parameters = kernel.plant_parameters(plant, self.nominal_running_resistance)
 
         self.disc = np.zeros((len(DISC_STATES), *disc_shape))
         self.disc[MU] = self.to_internal(conditions.initial_mu)
@@ -341,11 +362,154 @@ class Simulator:
         pressure (B, A)."""
         return self.plant.caliper.clamp_force_N(pressure_bar).T[:, None, :]
 
+    @property
+    def has_hooks(self) -> bool:
+        """Whether extra forces or friction modifiers take part (they need the staged path)."""
+        return bool(self.extra_forces or self.friction_modifiers)
+
+    def _context(self, time_s: float, disc: np.ndarray, train: np.ndarray, clamp_force: np.ndarray) -> StageContext:
+        return StageContext(
+            time_s,
+            train[SPEED],
+            train[POSITION],
+            self.mass_kg,
+            disc[MU],
+            clamp_force,
+            disc[T_FRIC],
+            disc[FRICTION_HEAT],
+        )
+
     def _friction_scale(self, context: StageContext) -> np.ndarray | float:
         scale: np.ndarray | float = 1.0
         for modifier in self.friction_modifiers:
             scale = scale * modifier.scale(context)
         return scale
+
+    def _extra_force_N(self, context: StageContext) -> np.ndarray:
+        extra = np.zeros(self.n_trains)
+        for term in self.extra_forces:
+            extra = extra + term.force_N(context)
+        return extra
+
+    def _hook_arrays(self, context: StageContext) -> tuple[np.ndarray, np.ndarray]:
+        """The hooks at one state as the compiled kernels take them: friction scale (A, k, B) and
+        extra force (B,), contiguous float arrays."""
+        scale = np.asarray(self._friction_scale(context), dtype=float)
+        extra = np.asarray(self._extra_force_N(context), dtype=float)
+        return (
+            np.ascontiguousarray(np.broadcast_to(scale, self.disc.shape[1:])),
+            np.ascontiguousarray(np.broadcast_to(extra, (self.n_trains,))),
+        )
+
+    @staticmethod
+    def _pressures(source: PressureSource) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The stage pressures as the kernels take them: C-contiguous float arrays (no copy when
+        they are already)."""
+        start, middle, end = source.stage_pressures_bar()
+        return (
+            np.ascontiguousarray(start, dtype=float),
+            np.ascontiguousarray(middle, dtype=float),
+            np.ascontiguousarray(end, dtype=float),
+        )
+
+    # ----------------------------------------------------------------------------------------
+    def step(self) -> StepRecord:
+        """Advance every train by one step."""
+        return self._step_staged() if self.has_hooks else self._step_fused()
+
+    def _step_fused(self) -> StepRecord:
+        t = self.time_s
+        p_start, p_mid, p_end = self._pressures(self.pressure)
+        disc0, train0, moving0 = self.disc, self.train, self.moving
+        disc1, train1 = np.empty_like(disc0), np.empty_like(train0)
+        moving1 = np.empty_like(moving0)
+        stop_fraction = np.empty(self.n_trains)
+        clamp_shape = (self.plant.n_axles, 1, self.n_trains)
+        clamp_start, clamp_end = np.empty(clamp_shape), np.empty(clamp_shape)
+        kernel.fused_rk4_step(
+            self._parameters, t, self.step_s, disc0, train0, moving0, p_start, p_mid, p_end,
+            self.power_coefficient, self._inverse_mass, self.resistance_A_N, self._nominal_resistance_A_N,
+            self.ambient_K, disc1, train1, moving1, stop_fraction, self.stop_time_s, clamp_start, clamp_end,
+        )  # fmt: skip
+        record = StepRecord(t, disc0, train0, clamp_start, clamp_end, stop_fraction)
+        return self._advance(record, disc1, train1, moving1)
+
+    def _step_staged(self) -> StepRecord:
+        """RK4 in Python around the compiled stage rates, so that the hooks see every stage."""
+        h = self.step_s
+        t = self.time_s
+        p_start, p_mid, p_end = self._pressures(self.pressure)
+        f_start, f_mid, f_end = (np.ascontiguousarray(self.clamp_force_N(p)) for p in (p_start, p_mid, p_end))
+        disc0, train0, moving0 = self.disc, self.train, self.moving
+        disc_rates = np.empty((4, *disc0.shape))
+        train_rates = np.empty((4, *train0.shape))
+        disc, train = disc0, train0
+        stages = (
+            (t, p_start, f_start, 0.5 * h),
+            (t + 0.5 * h, p_mid, f_mid, 0.5 * h),
+            (t + 0.5 * h, p_mid, f_mid, h),
+            (t + h, p_end, f_end, None),
+        )
+        for stage, (time_s, pressure, clamp_force, fraction_for_next) in enumerate(stages):
+            scale, extra = self._hook_arrays(self._context(time_s, disc, train, clamp_force))
+            kernel.stage_rates(
+                self._parameters, disc, train, moving0, pressure, scale, extra, self.power_coefficient,
+                self._inverse_mass, self.resistance_A_N, self._nominal_resistance_A_N, self.ambient_K,
+                disc_rates[stage], train_rates[stage],
+            )  # fmt: skip
+            if fraction_for_next is not None:
+                disc = disc0 + fraction_for_next * disc_rates[stage]
+                train = train0 + fraction_for_next * train_rates[stage]
+        disc1, train1 = np.empty_like(disc0), np.empty_like(train0)
+        moving1 = np.empty_like(moving0)
+        stop_fraction = np.empty(self.n_trains)
+        kernel.finish_rk4_step(
+            self._parameters, t, h, disc0, train0, moving0, disc_rates, train_rates, disc1, train1, moving1,
+            stop_fraction, self.stop_time_s,
+        )  # fmt: skip
+        record = StepRecord(t, disc0, train0, f_start, f_end, stop_fraction)
+        return self._advance(record, disc1, train1, moving1)
+
+    def _advance(self, record: StepRecord, disc1: np.ndarray, train1: np.ndarray, moving1: np.ndarray) -> StepRecord:
+        # New arrays every step: the record keeps the pre-step state, which nothing writes to.
+        self.disc, self.train, self.moving = disc1, train1, moving1
+        self.pressure.advance()
+        self.step_index += 1
+        self.last_step = record
+        return record
+
+    # ----------------------------------------------------------------------------------------
+    def deceleration_mps2(self) -> np.ndarray:
+        """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
+        slowing, zero at standstill)."""
+        clamp_force = np.ascontiguousarray(self.clamp_force_N(self.pressure.pressure_bar), dtype=float)
+        if self.has_hooks:
+            scale, extra = self._hook_arrays(self._context(self.time_s, self.disc, self.train, clamp_force))
+        else:
+            scale, extra = np.ones(self.disc.shape[1:]), np.zeros(self.n_trains)
+        out = np.empty(self.n_trains)
+        kernel.deceleration_mps2(
+            self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._inverse_mass,
+            self.resistance_A_N, out,
+        )  # fmt: skip
+        return out
+
+    def state_view(self, name: str) -> np.ndarray:
+        """A named state (from DISC_STATES or TRAIN_STATES), as a view."""
+        if name in DISC_STATES:
+            return self.disc[DISC_STATES.index(name)]
+        if name in TRAIN_STATES:
+            return self.train[TRAIN_STATES.index(name)]
+        raise KeyError(f"unknown state {name!r}; known: {DISC_STATES + TRAIN_STATES}")
+
+
+class NumpyReferenceSimulator(Simulator):
+    """The same model as :class:`Simulator`, integrated with numpy array operations only.
+
+    Readable and slow (about 60 array passes per RK4 stage): the reference the compiled kernels
+    are tested against (``tests/test_kernel.py``) and benchmarked against
+    (``benchmarks/bench_step.py``). Same interface and results within rounding.
+    """
 
     def _forces(
         self, time_s: float, disc: np.ndarray, train: np.ndarray, clamp_force: np.ndarray
@@ -353,19 +517,12 @@ class Simulator:
         """Friction force per disc and the train forces at one state."""
         plant = self.plant
         mu = plant.friction.bounded(disc[MU])
-        context = None
-        if self.friction_modifiers or self.extra_forces:
-            context = StageContext(
-                time_s, train[SPEED], train[POSITION], self.mass_kg, disc[MU], clamp_force, disc[T_FRIC],
-                disc[FRICTION_HEAT],
-            )
-        effective_mu = mu * self._friction_scale(context) if self.friction_modifiers else mu
-        friction_force = effective_mu * clamp_force
+        context = self._context(time_s, disc, train, clamp_force) if self.has_hooks else None
+        effective = mu * self._friction_scale(context) if self.friction_modifiers else mu  # type: ignore[arg-type]
+        friction_force = effective * clamp_force
         brake = brake_force_N(friction_force, plant.friction_radius_m, plant.wheel_radius_m)
         resistance = plant.running_resistance.force_N(train[SPEED], self.resistance_A_N)
-        extra = np.zeros_like(brake)
-        for term in self.extra_forces:
-            extra = extra + term.force_N(context)
+        extra = self._extra_force_N(context) if self.extra_forces else np.zeros_like(brake)  # type: ignore[arg-type]
         return mu, friction_force, brake, resistance, extra
 
     def _rates(
@@ -380,7 +537,8 @@ class Simulator:
         friction_power = friction_force * sliding
         flows = plant.thermal.heat_flows(friction_power, disc[T_FRIC], disc[T_DISC], sliding, self.ambient_K)
         d_disc = np.empty_like(disc)
-        d_disc[MU] = plant.friction.rate_per_s(
+        # mu is bounded once, in _forces.
+        d_disc[MU] = plant.friction.rate_of_bounded_mu_per_s(
             mu, clamp_force, sliding, disc[T_FRIC], self.power_coefficient
         )
         d_disc[T_FRIC], d_disc[T_DISC] = plant.thermal.temperature_rates_K_per_s(flows)
@@ -395,15 +553,11 @@ class Simulator:
         d_train[BRAKE_WORK] = brake * speed
         d_train[RESISTANCE_WORK] = resistance * speed
         d_train[EXTRA_WORK] = extra * speed
-        # Eq. 15: mu_eff = (m d - F_R,nominal(v)) / sum (r_fric / r_wheel) F_C, with m d the
-        # actual retarding force; zero while no clamp force acts (it is only integrated after
-        # the clamp force has reached 95 % of its nominal value).
+        # Eq. 15 with the actual retarding force; it is only integrated after the clamp force
+        # has reached 95 % of its nominal value.
         weighted_clamp = clamp_force.sum(axis=(0, 1)) * (plant.discs_per_axle * plant.radius_ratio)
         nominal_resistance = self.nominal_running_resistance.force_N(speed)
-        mu_eff = np.divide(
-            total - nominal_resistance, weighted_clamp, out=np.zeros_like(total), where=weighted_clamp > 0
-        )
-        d_train[MU_EFF_DISTANCE] = mu_eff * speed
+        d_train[MU_EFF_DISTANCE] = effective_mu(total, nominal_resistance, weighted_clamp) * speed
         return d_disc, d_train
 
     def step(self) -> StepRecord:
@@ -435,30 +589,14 @@ class Simulator:
             train1[POSITION, stopping] = train0[POSITION, stopping] + 0.5 * v0 * theta * h
             train1[SPEED, stopping] = 0.0
             self.stop_time_s[stopping] = t + theta * h
-            self.moving = self.moving & ~stopping
         disc1[MU] = self.plant.friction.bounded(disc1[MU])
+        record = StepRecord(t, disc0, train0, f_start, f_end, stop_fraction)
+        return self._advance(record, disc1, train1, self.moving & ~stopping)
 
-        self.disc, self.train = disc1, train1
-        self.pressure.advance()
-        self.step_index += 1
-        self.last_step = StepRecord(t, disc0, train0, f_start, f_end, stop_fraction)
-        return self.last_step
-
-    # ----------------------------------------------------------------------------------------
     def deceleration_mps2(self) -> np.ndarray:
-        """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
-        slowing, zero at standstill)."""
         clamp_force = self.clamp_force_N(self.pressure.pressure_bar)
         _, _, brake, resistance, extra = self._forces(self.time_s, self.disc, self.train, clamp_force)
         return np.where(self.moving, (brake + resistance + extra) * self._inverse_mass, 0.0)
-
-    def state_view(self, name: str) -> np.ndarray:
-        """A named state (from DISC_STATES or TRAIN_STATES), as a view."""
-        if name in DISC_STATES:
-            return self.disc[DISC_STATES.index(name)]
-        if name in TRAIN_STATES:
-            return self.train[TRAIN_STATES.index(name)]
-        raise KeyError(f"unknown state {name!r}; known: {DISC_STATES + TRAIN_STATES}")
 
 
 class StopMetrics:

@@ -1,0 +1,839 @@
+"""Compiled RK4 kernels of :class:`~brakegym.simulator.Simulator` (numba).
+
+The physics is not written here: the equations are the module-level functions of
+:mod:`brakegym.physics` (the same function objects the numpy code calls), registered below so
+that numba compiles them where the kernels call them. What is here is the integration: trains in
+tiles of up to 16, the four RK4 stages of a tile in small work arrays that stay in the cache, the
+stop interpolation. The hot loop runs over every disc of every train of a tile with no reduction
+and no call left in it, so LLVM vectorizes it (:mod:`brakegym.kernel_math` says how the
+fractional powers are computed for that).
+
+Two ways through a step, with the same code per tile:
+
+- :func:`fused_rk4_step`: the whole step in one call, for a simulator without extension hooks;
+- :func:`stage_rates` once per RK4 stage, then :func:`finish_rk4_step`: for a simulator whose
+  friction modifiers and extra forces (Python objects) are evaluated between the stages. They
+  enter as arrays: a friction scale per disc and an extra force per train.
+
+Compiled code is cached on disk (numba's ``cache=True``), so the compilation is paid once per
+machine. Numba checks only the source file of the cached function for changes; the kernels here
+inline code of other modules, so the cache stamp is widened to a digest of every source they can
+reach (``_CACHE_SOURCES``): edit a physics formula and the kernels compile afresh.
+
+No ``fastmath`` (results must not depend on how LLVM vectorizes or reassociates) and no
+``parallel`` (campaigns run in forked processes, which do not mix with numba's thread pools).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numba
+import numpy as np
+from numba.core import caching
+from numba.extending import register_jitable
+
+from . import kernel_math
+from .kernel_math import JIT_OPTIONS, choose
+from .physics.elementary import select
+from .physics.friction import bounded_mu, clamp_force_term_per_s, friction_evolves, friction_rate_per_s
+from .physics.mechanics import effective_mu, running_resistance_N
+from .physics.pneumatics import clamp_force_from_pressure_N
+from .physics.thermal import (
+    contact_conductance_W_per_K,
+    film_conductance_W_per_K,
+    heat_flows_W,
+    temperature_rates_K_per_s,
+)
+
+# The equations, compiled where the kernels call them. Inlined into the caller by numba itself:
+# LLVM's inliner leaves calls in place when a callee is large, and a call stops vectorization.
+for _equation in (
+    bounded_mu,
+    friction_evolves,
+    clamp_force_term_per_s,
+    friction_rate_per_s,
+    film_conductance_W_per_K,
+    contact_conductance_W_per_K,
+    heat_flows_W,
+    temperature_rates_K_per_s,
+    running_resistance_N,
+    effective_mu,
+    clamp_force_from_pressure_N,
+):
+    register_jitable(inline="always", **JIT_OPTIONS)(_equation)
+
+# Rows of the simulator's packed states (brakegym.simulator.DISC_STATES and TRAIN_STATES).
+MU, T_FRIC, T_DISC, MU_DISTANCE, FRICTION_HEAT, COOLING_HEAT = range(6)
+N_DISC_STATES = 6
+SPEED, POSITION, BRAKE_WORK, RESISTANCE_WORK, EXTRA_WORK, MU_EFF_DISTANCE = range(6)
+N_TRAIN_STATES = 6
+
+# Entries of the plant parameter vector the kernels read (built by plant_parameters()).
+(
+    RADIUS_RATIO,
+    DISCS_PER_AXLE,
+    CALIPER_GAIN_N_PER_BAR,
+    CALIPER_THRESHOLD_BAR,
+    POWER_EXPONENT,
+    DECAY_COEFFICIENT_PER_S,
+    DECAY_EXPONENT,
+    TEMPERATURE_COEFFICIENT_PER_S,
+    TEMPERATURE_EXPONENT,
+    CLAMP_FORCE_COEFFICIENT_PER_S,
+    CLAMP_FORCE_EXPONENT,
+    REFERENCE_POWER_W,
+    REFERENCE_TEMPERATURE_K,
+    REFERENCE_CLAMP_FORCE_N,
+    MU_MIN,
+    MU_MAX,
+    MIN_SLIDING_SPEED_MPS,
+    FRICTION_LAYER_HEAT_CAPACITY_J_PER_K,
+    DISC_BODY_HEAT_CAPACITY_J_PER_K,
+    CONDUCTANCE_W_PER_K,
+    CONDUCTANCE_SLOPE_W_PER_K2,
+    CONDUCTANCE_REFERENCE_TEMPERATURE_K,
+    CONDUCTANCE_MIN_W_PER_K,
+    HEAT_FRACTION_INTO_DISC,
+    REFERENCE_SLIDING_SPEED_MPS,
+    SURFACE_H0_W_PER_M2K,
+    SURFACE_H_REF_W_PER_M2K,
+    SURFACE_EXPONENT,
+    SURFACE_AREA_M2,
+    VENTILATION_H0_W_PER_M2K,
+    VENTILATION_H_REF_W_PER_M2K,
+    VENTILATION_EXPONENT,
+    VENTILATION_AREA_M2,
+    RESISTANCE_B_N_PER_MPS,
+    RESISTANCE_C_N_PER_MPS2,
+    NOMINAL_RESISTANCE_B_N_PER_MPS,
+    NOMINAL_RESISTANCE_C_N_PER_MPS2,
+) = range(37)
+N_PLANT_PARAMETERS = 37
+
+
+def plant_parameters(plant, nominal_running_resistance) -> np.ndarray:
+    """The plant's constants as the vector the kernels read (a ``brakegym.simulator.Plant`` and
+    the running resistance Eq. 15 uses). Per-train and per-disc values are separate arrays."""
+    friction, thermal = plant.friction, plant.thermal
+    values = {
+        RADIUS_RATIO: plant.radius_ratio,
+        DISCS_PER_AXLE: plant.discs_per_axle,
+        CALIPER_GAIN_N_PER_BAR: plant.caliper.gain_N_per_bar,
+        CALIPER_THRESHOLD_BAR: plant.caliper.threshold_bar,
+        POWER_EXPONENT: friction.power_exponent,
+        DECAY_COEFFICIENT_PER_S: friction.decay_coefficient_per_s,
+        DECAY_EXPONENT: friction.decay_exponent,
+        TEMPERATURE_COEFFICIENT_PER_S: friction.temperature_coefficient_per_s,
+        TEMPERATURE_EXPONENT: friction.temperature_exponent,
+        CLAMP_FORCE_COEFFICIENT_PER_S: friction.clamp_force_coefficient_per_s,
+        CLAMP_FORCE_EXPONENT: friction.clamp_force_exponent,
+        REFERENCE_POWER_W: friction.reference_power_W,
+        REFERENCE_TEMPERATURE_K: friction.reference_temperature_K,
+        REFERENCE_CLAMP_FORCE_N: friction.reference_clamp_force_N,
+        MU_MIN: friction.mu_min,
+        MU_MAX: friction.mu_max,
+        MIN_SLIDING_SPEED_MPS: friction.min_sliding_speed_mps,
+        FRICTION_LAYER_HEAT_CAPACITY_J_PER_K: thermal.friction_layer_heat_capacity_J_per_K,
+        DISC_BODY_HEAT_CAPACITY_J_PER_K: thermal.disc_body_heat_capacity_J_per_K,
+        CONDUCTANCE_W_PER_K: thermal.conductance_W_per_K,
+        CONDUCTANCE_SLOPE_W_PER_K2: thermal.conductance_slope_W_per_K2,
+        CONDUCTANCE_REFERENCE_TEMPERATURE_K: thermal.conductance_reference_temperature_K,
+        CONDUCTANCE_MIN_W_PER_K: thermal.conductance_min_W_per_K,
+        HEAT_FRACTION_INTO_DISC: thermal.heat_fraction_into_disc,
+        REFERENCE_SLIDING_SPEED_MPS: thermal.reference_sliding_speed_mps,
+        SURFACE_H0_W_PER_M2K: thermal.surface.h0_W_per_m2K,
+        SURFACE_H_REF_W_PER_M2K: thermal.surface.h_ref_W_per_m2K,
+        SURFACE_EXPONENT: thermal.surface.exponent,
+        SURFACE_AREA_M2: thermal.surface.area_m2,
+        VENTILATION_H0_W_PER_M2K: thermal.ventilation.h0_W_per_m2K,
+        VENTILATION_H_REF_W_PER_M2K: thermal.ventilation.h_ref_W_per_m2K,
+        VENTILATION_EXPONENT: thermal.ventilation.exponent,
+        VENTILATION_AREA_M2: thermal.ventilation.area_m2,
+        RESISTANCE_B_N_PER_MPS: plant.running_resistance.B_N_per_mps,
+        RESISTANCE_C_N_PER_MPS2: plant.running_resistance.C_N_per_mps2,
+        NOMINAL_RESISTANCE_B_N_PER_MPS: nominal_running_resistance.B_N_per_mps,
+        NOMINAL_RESISTANCE_C_N_PER_MPS2: nominal_running_resistance.C_N_per_mps2,
+    }
+    assert sorted(values) == list(range(N_PLANT_PARAMETERS)), "every kernel parameter set exactly once"
+    parameters = np.empty(N_PLANT_PARAMETERS)
+    for index, value in values.items():
+        parameters[index] = value
+    return parameters
+
+
+# ------------------------------------------------------------------------------------------------
+# Disk cache keyed on every source the kernels compile
+
+_PACKAGE = Path(__file__).resolve().parent
+_CACHE_SOURCES = (
+    Path(__file__).resolve(),
+    Path(kernel_math.__file__).resolve(),
+    *sorted((_PACKAGE / "physics").glob("*.py")),
+)
+
+
+def cache_sources_digest(paths=_CACHE_SOURCES) -> str:
+    """SHA-256 over the contents of ``paths``: the stamp of the kernels' disk cache."""
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(Path(path).name.encode())
+        digest.update(Path(path).read_bytes())
+    return digest.hexdigest()
+
+
+# Taken when this module is imported: the code compiled in this process is the code read now.
+_SOURCES_DIGEST = cache_sources_digest()
+
+
+class _SourcesStamp:
+    def get_source_stamp(self):
+        return _SOURCES_DIGEST
+
+
+# numba's own file-backed locators (NUMBA_CACHE_DIR, the package's __pycache__, the user's cache
+# directory), each with the widened stamp.
+_LOCATORS = [
+    type(f"PhysicsSources{base.__name__}", (_SourcesStamp, base), {})
+    for base in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)
+]
+
+
+class _KernelCacheImpl(caching.CompileResultCacheImpl):
+    _locator_classes = _LOCATORS
+
+
+class _KernelCache(caching.FunctionCache):
+    _impl_class = _KernelCacheImpl
+
+
+def _compiled(function):
+    """``numba.njit(cache=True)`` with the cache stamp of every physics source."""
+    dispatcher = numba.njit(**JIT_OPTIONS)(function)
+    dispatcher._cache = _KernelCache(function)  # what Dispatcher.enable_caching() does for cache=True
+    return dispatcher
+
+
+# ------------------------------------------------------------------------------------------------
+# Building blocks on a tile of trains (not inlined: each is compiled once and shared by the kernels)
+
+# Trains are integrated in tiles of up to this many. Inside a tile the disc values lie in one
+# flat row per state, slot (axle * k + disc) * n_tile + train, so the hot loop runs over all discs
+# of all trains of the tile: 16 slots for a single train, 256 for a full tile, and LLVM vectorizes
+# it either way. A tile's work arrays stay in the L1/L2 cache. Vector lanes and the scalar
+# remainder do the same IEEE operations, so a train's result does not depend on its tile or its
+# place in the batch.
+TRAINS_PER_TILE = 16
+
+
+@numba.njit(**JIT_OPTIONS)
+def _gather_discs(states, tile_start, n_tile, tile):
+    """Disc values (R, A, k, B) of the tile's trains into slots ``tile`` (R, A * k * T)."""
+    n_axles, per_axle = states.shape[1], states.shape[2]
+    for row in range(states.shape[0]):
+        for axle in range(n_axles):
+            for disc in range(per_axle):
+                first = (axle * per_axle + disc) * n_tile
+                for t in range(n_tile):
+                    tile[row, first + t] = states[row, axle, disc, tile_start + t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _scatter_discs(tile, tile_start, n_tile, states):
+    n_axles, per_axle = states.shape[1], states.shape[2]
+    for row in range(states.shape[0]):
+        for axle in range(n_axles):
+            for disc in range(per_axle):
+                first = (axle * per_axle + disc) * n_tile
+                for t in range(n_tile):
+                    states[row, axle, disc, tile_start + t] = tile[row, first + t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _gather_trains(values, tile_start, n_tile, tile):
+    """Train values (R, B) of the tile's trains into ``tile`` (R, T)."""
+    for row in range(values.shape[0]):
+        for t in range(n_tile):
+            tile[row, t] = values[row, tile_start + t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _per_slot(n_discs, n_tile, per_train, slots):
+    """A value per train (T,) repeated for each of its discs (A * k * T,)."""
+    for disc in range(n_discs):
+        for t in range(n_tile):
+            slots[disc * n_tile + t] = per_train[t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _clamp_of_tile(
+    parameters,
+    pressure_bar,
+    tile_start,
+    n_tile,
+    per_axle,
+    axle_clamp_N,
+    axle_clamp_term,
+    clamp_N,
+    clamp_term,
+    weighted_clamp_N,
+):
+    """From the cylinder pressures (B, A) of the tile's trains: the clamp force of each axle
+    (spec Section 4) and Eq. 4's clamp-force term (it depends on the clamp force alone, so it is
+    evaluated per axle) into ``axle_clamp_N`` and ``axle_clamp_term`` (A * T,), both per disc slot
+    into ``clamp_N`` and ``clamp_term`` (S,), and sum over discs of (r_fric / r_wheel) F_C,
+    Eq. 15's denominator, into ``weighted_clamp_N`` (T,)."""
+    n_axles = pressure_bar.shape[1]
+    gain, threshold = parameters[CALIPER_GAIN_N_PER_BAR], parameters[CALIPER_THRESHOLD_BAR]
+    for axle in range(n_axles):
+        for t in range(n_tile):
+            pressure = pressure_bar[tile_start + t, axle]
+            axle_clamp_N[axle * n_tile + t] = clamp_force_from_pressure_N(pressure, gain, threshold)
+    coefficient, exponent = parameters[CLAMP_FORCE_COEFFICIENT_PER_S], parameters[CLAMP_FORCE_EXPONENT]
+    reference = parameters[REFERENCE_CLAMP_FORCE_N]
+    for index in range(n_axles * n_tile):
+        axle_clamp_term[index] = clamp_force_term_per_s(axle_clamp_N[index], coefficient, exponent, reference)
+    for t in range(n_tile):
+        weighted_clamp_N[t] = 0.0
+    for axle in range(n_axles):
+        for t in range(n_tile):
+            weighted_clamp_N[t] += axle_clamp_N[axle * n_tile + t]
+    weight = parameters[DISCS_PER_AXLE] * parameters[RADIUS_RATIO]
+    for t in range(n_tile):
+        weighted_clamp_N[t] *= weight
+    for axle in range(n_axles):
+        for disc in range(per_axle):
+            first = (axle * per_axle + disc) * n_tile
+            for t in range(n_tile):
+                clamp_N[first + t] = axle_clamp_N[axle * n_tile + t]
+                clamp_term[first + t] = axle_clamp_term[axle * n_tile + t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _rates_of_tile(
+    parameters,
+    n_discs,
+    n_tile,
+    disc,
+    speed_mps,
+    moving,
+    clamp_N,
+    clamp_term,
+    weighted_clamp_N,
+    friction_scale,
+    extra_force_N,
+    power_coefficient,
+    ambient_K,
+    resistance_A_N,
+    nominal_resistance_A_N,
+    inverse_mass,
+    disc_rates,
+    train_rates,
+    stage,
+    train_work,
+    slot_work,
+):
+    """Time derivatives of the tile's disc states ``disc`` (6, S) and train states at the speeds
+    ``speed_mps`` (T,), into row ``stage`` of ``disc_rates`` (4, 6, S) and ``train_rates``
+    (4, 6, T). Per-slot inputs (S,): clamp force and term, friction scale, power coefficient,
+    ambient temperature; per-train inputs (T,). ``train_work`` (4, T) and ``slot_work`` (5, S)
+    are scratch. The same as ``NumpyReferenceSimulator._rates``."""
+    n_slots = n_discs * n_tile
+    ratio = parameters[RADIUS_RATIO]
+    sliding, surface_conductance, ventilation_conductance, friction_sum = (
+        train_work[0],
+        train_work[1],
+        train_work[2],
+        train_work[3],
+    )
+    for t in range(n_tile):
+        # Stages may overshoot past standstill inside the stopping step: the forces extrapolate
+        # smoothly there (for the stop interpolation), the sliding speed does not go negative.
+        v_fric = choose(speed_mps[t] > 0.0, speed_mps[t], 0.0) * ratio
+        sliding[t] = v_fric
+        surface_conductance[t] = film_conductance_W_per_K(
+            v_fric,
+            parameters[SURFACE_H0_W_PER_M2K],
+            parameters[SURFACE_H_REF_W_PER_M2K],
+            parameters[SURFACE_EXPONENT],
+            parameters[SURFACE_AREA_M2],
+            parameters[REFERENCE_SLIDING_SPEED_MPS],
+        )
+        ventilation_conductance[t] = film_conductance_W_per_K(
+            v_fric,
+            parameters[VENTILATION_H0_W_PER_M2K],
+            parameters[VENTILATION_H_REF_W_PER_M2K],
+            parameters[VENTILATION_EXPONENT],
+            parameters[VENTILATION_AREA_M2],
+            parameters[REFERENCE_SLIDING_SPEED_MPS],
+        )
+    speed_of_slot, sliding_of_slot = slot_work[0], slot_work[1]
+    surface_of_slot, ventilation_of_slot, friction_force = slot_work[2], slot_work[3], slot_work[4]
+    _per_slot(n_discs, n_tile, speed_mps, speed_of_slot)
+    _per_slot(n_discs, n_tile, sliding, sliding_of_slot)
+    _per_slot(n_discs, n_tile, surface_conductance, surface_of_slot)
+    _per_slot(n_discs, n_tile, ventilation_conductance, ventilation_of_slot)
+
+    # Read once: inside the loop LLVM could not tell them apart from the stores to the arrays.
+    mu_min, mu_max = parameters[MU_MIN], parameters[MU_MAX]
+    min_sliding = parameters[MIN_SLIDING_SPEED_MPS]
+    power_exponent = parameters[POWER_EXPONENT]
+    decay_coefficient, decay_exponent = parameters[DECAY_COEFFICIENT_PER_S], parameters[DECAY_EXPONENT]
+    temperature_coefficient = parameters[TEMPERATURE_COEFFICIENT_PER_S]
+    temperature_exponent = parameters[TEMPERATURE_EXPONENT]
+    reference_power, reference_temperature = parameters[REFERENCE_POWER_W], parameters[REFERENCE_TEMPERATURE_K]
+    conductance, conductance_slope = parameters[CONDUCTANCE_W_PER_K], parameters[CONDUCTANCE_SLOPE_W_PER_K2]
+    conductance_reference = parameters[CONDUCTANCE_REFERENCE_TEMPERATURE_K]
+    conductance_min = parameters[CONDUCTANCE_MIN_W_PER_K]
+    fraction_into_disc = parameters[HEAT_FRACTION_INTO_DISC]
+    friction_layer_capacity = parameters[FRICTION_LAYER_HEAT_CAPACITY_J_PER_K]
+    disc_body_capacity = parameters[DISC_BODY_HEAT_CAPACITY_J_PER_K]
+
+    for slot in range(n_slots):
+        mu = bounded_mu(disc[MU, slot], mu_min, mu_max)
+        friction_temperature = disc[T_FRIC, slot]
+        disc_temperature = disc[T_DISC, slot]
+        clamp = clamp_N[slot]
+        v_fric = sliding_of_slot[slot]
+        force = mu * friction_scale[slot] * clamp
+        friction_force[slot] = force
+        friction_W, surface_W, conduction_W, ventilation_W = heat_flows_W(
+            force * v_fric,
+            friction_temperature,
+            disc_temperature,
+            surface_of_slot[slot],
+            ventilation_of_slot[slot],
+            contact_conductance_W_per_K(
+                0.5 * (friction_temperature + disc_temperature),
+                conductance,
+                conductance_slope,
+                conductance_reference,
+                conductance_min,
+            ),
+            ambient_K[slot],
+            fraction_into_disc,
+        )
+        d_friction_temperature, d_disc_temperature = temperature_rates_K_per_s(
+            friction_W, surface_W, conduction_W, ventilation_W, friction_layer_capacity, disc_body_capacity
+        )
+        mu_rate = friction_rate_per_s(
+            mu,
+            clamp,
+            v_fric,
+            friction_temperature,
+            clamp_term[slot],
+            power_coefficient[slot],
+            power_exponent,
+            decay_coefficient,
+            decay_exponent,
+            temperature_coefficient,
+            temperature_exponent,
+            reference_power,
+            reference_temperature,
+        )
+        disc_rates[stage, MU, slot] = select(friction_evolves(clamp, v_fric, min_sliding), mu_rate, 0.0)
+        disc_rates[stage, T_FRIC, slot] = d_friction_temperature
+        disc_rates[stage, T_DISC, slot] = d_disc_temperature
+        disc_rates[stage, MU_DISTANCE, slot] = mu * speed_of_slot[slot]
+        disc_rates[stage, FRICTION_HEAT, slot] = friction_W
+        disc_rates[stage, COOLING_HEAT, slot] = surface_W + ventilation_W
+
+    # Each train's discs summed in their order, apart from the loop above (a floating-point sum
+    # inside it would not vectorize): deterministic.
+    for t in range(n_tile):
+        friction_sum[t] = 0.0
+    for disc_index in range(n_discs):
+        for t in range(n_tile):
+            friction_sum[t] += friction_force[disc_index * n_tile + t]
+    resistance_B, resistance_C = parameters[RESISTANCE_B_N_PER_MPS], parameters[RESISTANCE_C_N_PER_MPS2]
+    nominal_B, nominal_C = parameters[NOMINAL_RESISTANCE_B_N_PER_MPS], parameters[NOMINAL_RESISTANCE_C_N_PER_MPS2]
+    for t in range(n_tile):
+        speed = speed_mps[t]
+        brake = friction_sum[t] * ratio
+        resistance = running_resistance_N(speed, resistance_A_N[t], resistance_B, resistance_C)
+        total = brake + resistance + extra_force_N[t]
+        train_rates[stage, SPEED, t] = choose(moving[t], -total * inverse_mass[t], 0.0)
+        train_rates[stage, POSITION, t] = speed
+        train_rates[stage, BRAKE_WORK, t] = brake * speed
+        train_rates[stage, RESISTANCE_WORK, t] = resistance * speed
+        train_rates[stage, EXTRA_WORK, t] = extra_force_N[t] * speed
+        nominal_resistance = running_resistance_N(speed, nominal_resistance_A_N[t], nominal_B, nominal_C)
+        train_rates[stage, MU_EFF_DISTANCE, t] = effective_mu(total, nominal_resistance, weighted_clamp_N[t]) * speed
+
+
+@numba.njit(**JIT_OPTIONS)
+def _advance_tile(
+    n_slots, n_tile, disc_start, train_start, disc_rates, train_rates, stage, fraction_of_step, disc_stage, speed_mps
+):
+    """The state at which the next stage is evaluated: start + fraction_of_step * the rates of
+    ``stage`` (of the train states only the speed enters the rates)."""
+    for row in range(N_DISC_STATES):
+        for slot in range(n_slots):
+            disc_stage[row, slot] = disc_start[row, slot] + fraction_of_step * disc_rates[stage, row, slot]
+    for t in range(n_tile):
+        speed_mps[t] = train_start[SPEED, t] + fraction_of_step * train_rates[stage, SPEED, t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _finish_tile(
+    parameters,
+    time_s,
+    step_s,
+    tile_start,
+    n_discs,
+    n_tile,
+    disc_start,
+    train_start,
+    disc_rates,
+    train_rates,
+    moving,
+    disc_end,
+    train_end,
+    stop_fraction,
+    stop_time_s,
+    moving1,
+):
+    """RK4's weighted sum of the four stages' rates into ``disc_end`` (6, S) and ``train_end``
+    (6, T), the stop inside the step and the mu bound, for the trains ``tile_start`` ...
+    ``tile_start + n_tile - 1``; sets their ``stop_fraction``, ``stop_time_s`` and ``moving1``."""
+    n_slots = n_discs * n_tile
+    sixth = step_s / 6.0
+    for row in range(N_DISC_STATES):
+        for slot in range(n_slots):
+            disc_end[row, slot] = disc_start[row, slot] + sixth * (
+                disc_rates[0, row, slot]
+                + 2.0 * (disc_rates[1, row, slot] + disc_rates[2, row, slot])
+                + disc_rates[3, row, slot]
+            )
+    for row in range(N_TRAIN_STATES):
+        for t in range(n_tile):
+            train_end[row, t] = train_start[row, t] + sixth * (
+                train_rates[0, row, t]
+                + 2.0 * (train_rates[1, row, t] + train_rates[2, row, t])
+                + train_rates[3, row, t]
+            )
+    for t in range(n_tile):
+        train = tile_start + t
+        if moving[t] and train_end[SPEED, t] <= 0.0:
+            v0 = train_start[SPEED, t]
+            theta = v0 / (v0 - train_end[SPEED, t])
+            # The deceleration is nearly constant over one step, so speed falls linearly to zero
+            # at theta and the distance grows by the area of that triangle.
+            for row in range(N_DISC_STATES):
+                for disc in range(n_discs):
+                    slot = disc * n_tile + t
+                    disc_end[row, slot] = disc_start[row, slot] + theta * (disc_end[row, slot] - disc_start[row, slot])
+            for row in range(N_TRAIN_STATES):
+                train_end[row, t] = train_start[row, t] + theta * (train_end[row, t] - train_start[row, t])
+            train_end[POSITION, t] = train_start[POSITION, t] + 0.5 * v0 * theta * step_s
+            train_end[SPEED, t] = 0.0
+            stop_fraction[train] = theta
+            stop_time_s[train] = time_s + theta * step_s
+            moving1[train] = False
+        else:
+            stop_fraction[train] = np.nan
+            moving1[train] = moving[t]
+    mu_min, mu_max = parameters[MU_MIN], parameters[MU_MAX]
+    for slot in range(n_slots):
+        disc_end[MU, slot] = bounded_mu(disc_end[MU, slot], mu_min, mu_max)
+
+
+# ------------------------------------------------------------------------------------------------
+# Kernels
+
+
+@_compiled
+def fused_rk4_step(
+    parameters,
+    time_s,
+    step_s,
+    disc0,
+    train0,
+    moving0,
+    pressure_start_bar,
+    pressure_mid_bar,
+    pressure_end_bar,
+    power_coefficient,
+    inverse_mass,
+    resistance_A_N,
+    nominal_resistance_A_N,
+    ambient_K,
+    disc1,
+    train1,
+    moving1,
+    stop_fraction,
+    stop_time_s,
+    clamp_start_N,
+    clamp_end_N,
+):
+    """One RK4 step of every train, without extension hooks.
+
+    Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,) and the
+    cylinder pressures (B, A) at the start, middle and end of the step; writes the new states to
+    ``disc1``, ``train1``, ``moving1``, the stop fraction (nan if none) and the clamp forces at
+    the start and end (A, 1, B); sets ``stop_time_s`` of the trains that stop."""
+    n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
+    n_discs = n_axles * per_axle
+    tile = min(TRAINS_PER_TILE, n_trains)
+    slots = n_discs * tile
+    disc_start = np.empty((N_DISC_STATES, slots))
+    disc_stage = np.empty((N_DISC_STATES, slots))
+    disc_end = np.empty((N_DISC_STATES, slots))
+    disc_rates = np.empty((4, N_DISC_STATES, slots))
+    train_start = np.empty((N_TRAIN_STATES, tile))
+    train_end = np.empty((N_TRAIN_STATES, tile))
+    train_rates = np.empty((4, N_TRAIN_STATES, tile))
+    per_train = np.empty((5, tile))  # inverse mass, resistance A, nominal A, ambient, speed
+    moving = np.empty(tile, dtype=np.bool_)
+    axle_clamp_N = np.empty((3, n_axles * tile))
+    axle_clamp_term = np.empty((3, n_axles * tile))
+    clamp_N = np.empty((3, slots))
+    clamp_term = np.empty((3, slots))
+    weighted_clamp_N = np.empty((3, tile))
+    per_slot = np.empty((2, slots))  # power coefficient, ambient
+    unit_friction_scale = np.ones(slots)
+    no_extra_force_N = np.zeros(tile)
+    train_work = np.empty((4, tile))
+    slot_work = np.empty((5, slots))
+    constants = np.empty((4, n_trains))
+    constants[0] = inverse_mass
+    constants[1] = resistance_A_N
+    constants[2] = nominal_resistance_A_N
+    constants[3] = ambient_K
+    pressures = (pressure_start_bar, pressure_mid_bar, pressure_end_bar)
+
+    for tile_start in range(0, n_trains, tile):
+        n_tile = min(tile, n_trains - tile_start)
+        n_slots = n_discs * n_tile
+        _gather_discs(disc0, tile_start, n_tile, disc_start)
+        _gather_trains(train0, tile_start, n_tile, train_start)
+        _gather_discs(power_coefficient.reshape(1, n_axles, per_axle, n_trains), tile_start, n_tile, per_slot)
+        _gather_trains(constants, tile_start, n_tile, per_train)
+        _per_slot(n_discs, n_tile, per_train[3], per_slot[1])
+        for t in range(n_tile):
+            moving[t] = moving0[tile_start + t]
+            per_train[4, t] = train_start[SPEED, t]
+        for moment in range(3):
+            _clamp_of_tile(
+                parameters, pressures[moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
+                axle_clamp_term[moment], clamp_N[moment], clamp_term[moment], weighted_clamp_N[moment],
+            )  # fmt: skip
+        for axle in range(n_axles):
+            for t in range(n_tile):
+                clamp_start_N[axle, 0, tile_start + t] = axle_clamp_N[0, axle * n_tile + t]
+                clamp_end_N[axle, 0, tile_start + t] = axle_clamp_N[2, axle * n_tile + t]
+
+        # Stage s is evaluated at the state advanced by stage s - 1's rates, with the clamp force
+        # of the start (s = 0), the middle (1, 2) or the end (3) of the step.
+        for stage in range(4):
+            moment = (stage + 1) // 2
+            if stage == 0:
+                state = disc_start
+            else:
+                fraction = step_s if stage == 3 else 0.5 * step_s
+                _advance_tile(
+                    n_slots, n_tile, disc_start, train_start, disc_rates, train_rates, stage - 1, fraction,
+                    disc_stage, per_train[4],
+                )  # fmt: skip
+                state = disc_stage
+            _rates_of_tile(
+                parameters, n_discs, n_tile, state, per_train[4], moving, clamp_N[moment], clamp_term[moment],
+                weighted_clamp_N[moment], unit_friction_scale, no_extra_force_N, per_slot[0], per_slot[1],
+                per_train[1], per_train[2], per_train[0], disc_rates, train_rates, stage, train_work, slot_work,
+            )  # fmt: skip
+        _finish_tile(
+            parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
+            train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving1,
+        )  # fmt: skip
+        _scatter_discs(disc_end, tile_start, n_tile, disc1)
+        for row in range(N_TRAIN_STATES):
+            for t in range(n_tile):
+                train1[row, tile_start + t] = train_end[row, t]
+
+
+@_compiled
+def stage_rates(
+    parameters,
+    disc,
+    train,
+    moving0,
+    pressure_bar,
+    friction_scale,
+    extra_force_N,
+    power_coefficient,
+    inverse_mass,
+    resistance_A_N,
+    nominal_resistance_A_N,
+    ambient_K,
+    disc_rates,
+    train_rates,
+):
+    """Rates of one RK4 stage for the simulator with hooks: states ``disc`` (6, A, k, B) and
+    ``train`` (6, B), the stage's cylinder pressures (B, A), the hooks' friction scale (A, k, B)
+    and extra force (B,); writes ``disc_rates`` (6, A, k, B) and ``train_rates`` (6, B)."""
+    n_axles, per_axle, n_trains = disc.shape[1], disc.shape[2], disc.shape[3]
+    n_discs = n_axles * per_axle
+    tile = min(TRAINS_PER_TILE, n_trains)
+    slots = n_discs * tile
+    state = np.empty((N_DISC_STATES, slots))
+    rates = np.empty((1, N_DISC_STATES, slots))
+    train_of_tile = np.empty((N_TRAIN_STATES, tile))
+    rates_of_train = np.empty((1, N_TRAIN_STATES, tile))
+    per_train = np.empty((5, tile))  # inverse mass, resistance A, nominal A, ambient, extra force
+    moving = np.empty(tile, dtype=np.bool_)
+    axle_clamp_N = np.empty(n_axles * tile)
+    axle_clamp_term = np.empty(n_axles * tile)
+    clamp_N = np.empty(slots)
+    clamp_term = np.empty(slots)
+    weighted_clamp_N = np.empty(tile)
+    per_slot = np.empty((3, slots))  # power coefficient, friction scale, ambient
+    train_work = np.empty((4, tile))
+    slot_work = np.empty((5, slots))
+    constants = np.empty((5, n_trains))
+    constants[0] = inverse_mass
+    constants[1] = resistance_A_N
+    constants[2] = nominal_resistance_A_N
+    constants[3] = ambient_K
+    constants[4] = extra_force_N
+    per_disc = np.empty((2, n_axles, per_axle, n_trains))
+    per_disc[0] = power_coefficient
+    per_disc[1] = friction_scale
+    for tile_start in range(0, n_trains, tile):
+        n_tile = min(tile, n_trains - tile_start)
+        _gather_discs(disc, tile_start, n_tile, state)
+        _gather_trains(train, tile_start, n_tile, train_of_tile)
+        _gather_discs(per_disc, tile_start, n_tile, per_slot)
+        _gather_trains(constants, tile_start, n_tile, per_train)
+        _per_slot(n_discs, n_tile, per_train[3], per_slot[2])
+        for t in range(n_tile):
+            moving[t] = moving0[tile_start + t]
+        _clamp_of_tile(
+            parameters, pressure_bar, tile_start, n_tile, per_axle, axle_clamp_N, axle_clamp_term, clamp_N, clamp_term,
+            weighted_clamp_N,
+        )  # fmt: skip
+        _rates_of_tile(
+            parameters, n_discs, n_tile, state, train_of_tile[SPEED], moving, clamp_N, clamp_term, weighted_clamp_N,
+            per_slot[1], per_train[4], per_slot[0], per_slot[2], per_train[1], per_train[2], per_train[0], rates,
+            rates_of_train, 0, train_work, slot_work,
+        )  # fmt: skip
+        _scatter_discs(rates[0], tile_start, n_tile, disc_rates)
+        for row in range(N_TRAIN_STATES):
+            for t in range(n_tile):
+                train_rates[row, tile_start + t] = rates_of_train[0, row, t]
+
+
+@_compiled
+def finish_rk4_step(
+    parameters,
+    time_s,
+    step_s,
+    disc0,
+    train0,
+    moving0,
+    disc_stage_rates,
+    train_stage_rates,
+    disc1,
+    train1,
+    moving1,
+    stop_fraction,
+    stop_time_s,
+):
+    """The end of a staged step: the four stages' rates (4, 6, A, k, B) and (4, 6, B) combined
+    as in :func:`fused_rk4_step`, with the same stop interpolation."""
+    n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
+    n_discs = n_axles * per_axle
+    tile = min(TRAINS_PER_TILE, n_trains)
+    slots = n_discs * tile
+    disc_start = np.empty((N_DISC_STATES, slots))
+    disc_end = np.empty((N_DISC_STATES, slots))
+    disc_rates = np.empty((4, N_DISC_STATES, slots))
+    train_start = np.empty((N_TRAIN_STATES, tile))
+    train_end = np.empty((N_TRAIN_STATES, tile))
+    train_rates = np.empty((4, N_TRAIN_STATES, tile))
+    moving = np.empty(tile, dtype=np.bool_)
+    all_disc_rates = disc_stage_rates.reshape(4 * N_DISC_STATES, n_axles, per_axle, n_trains)
+    all_train_rates = train_stage_rates.reshape(4 * N_TRAIN_STATES, n_trains)
+    for tile_start in range(0, n_trains, tile):
+        n_tile = min(tile, n_trains - tile_start)
+        _gather_discs(disc0, tile_start, n_tile, disc_start)
+        _gather_trains(train0, tile_start, n_tile, train_start)
+        _gather_discs(all_disc_rates, tile_start, n_tile, disc_rates.reshape(4 * N_DISC_STATES, slots))
+        _gather_trains(all_train_rates, tile_start, n_tile, train_rates.reshape(4 * N_TRAIN_STATES, tile))
+        for t in range(n_tile):
+            moving[t] = moving0[tile_start + t]
+        _finish_tile(
+            parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
+            train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving1,
+        )  # fmt: skip
+        _scatter_discs(disc_end, tile_start, n_tile, disc1)
+        for row in range(N_TRAIN_STATES):
+            for t in range(n_tile):
+                train1[row, tile_start + t] = train_end[row, t]
+
+
+@_compiled
+def deceleration_mps2(
+    parameters, disc, train, moving, clamp_N, friction_scale, extra_force_N, inverse_mass, resistance_A_N, out
+):
+    """Deceleration of each train at the given state (positive while slowing, 0 at standstill):
+    the forces of :func:`_rates_of_tile` without the rates. ``clamp_N`` is (A, 1, B)."""
+    n_axles, per_axle, n_trains = disc.shape[1], disc.shape[2], disc.shape[3]
+    mu_min, mu_max = parameters[MU_MIN], parameters[MU_MAX]
+    for train_index in range(n_trains):
+        friction_sum = 0.0
+        for axle in range(n_axles):
+            for k in range(per_axle):
+                mu = bounded_mu(disc[MU, axle, k, train_index], mu_min, mu_max)
+                friction_sum += mu * friction_scale[axle, k, train_index] * clamp_N[axle, 0, train_index]
+        speed = train[SPEED, train_index]
+        resistance = running_resistance_N(
+            speed, resistance_A_N[train_index], parameters[RESISTANCE_B_N_PER_MPS], parameters[RESISTANCE_C_N_PER_MPS2]
+        )
+        total = friction_sum * parameters[RADIUS_RATIO] + resistance + extra_force_N[train_index]
+        out[train_index] = choose(moving[train_index], total * inverse_mass[train_index], 0.0)
+
+
+def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
+    """Load (or, the first time on a machine, compile) every kernel in this process, by running
+    each once on a single stationary train.
+
+    Campaigns call it before forking their workers: the workers then inherit the loaded code
+    instead of each paying numba's start-up and the cache load (seconds)."""
+    disc = np.zeros((N_DISC_STATES, n_axles, discs_per_axle, 1))
+    disc[MU] = 0.35
+    disc[T_FRIC] = disc[T_DISC] = 293.15
+    train = np.zeros((N_TRAIN_STATES, 1))
+    moving = np.zeros(1, dtype=np.bool_)
+    per_train = np.ones(1)
+    per_disc = np.ones((n_axles, discs_per_axle, 1))
+    pressure = np.zeros((1, n_axles))
+    clamp = np.zeros((n_axles, 1, 1))
+    parameters = np.ones(N_PLANT_PARAMETERS)
+    new_disc, new_train, new_moving = np.empty_like(disc), np.empty_like(train), np.empty_like(moving)
+    stop_fraction, stop_time = np.empty(1), np.full(1, np.nan)
+    fused_rk4_step(
+        parameters, 0.0, 0.1, disc, train, moving, pressure, pressure, pressure, per_disc, per_train, per_train,
+        per_train, per_train, new_disc, new_train, new_moving, stop_fraction, stop_time, clamp.copy(), clamp.copy(),
+    )  # fmt: skip
+    disc_rates, train_rates = np.empty((4, *disc.shape)), np.empty((4, *train.shape))
+    for stage in range(4):
+        stage_rates(
+            parameters, disc, train, moving, pressure, per_disc, per_train, per_disc, per_train, per_train, per_train,
+            per_train, disc_rates[stage], train_rates[stage],
+        )  # fmt: skip
+    finish_rk4_step(
+        parameters, 0.0, 0.1, disc, train, moving, disc_rates, train_rates, new_disc, new_train, new_moving,
+        stop_fraction, stop_time,
+    )  # fmt: skip
+    deceleration_mps2(parameters, disc, train, moving, clamp, per_disc, per_train, per_train, per_train, np.empty(1))
+
+
+__all__ = [
+    "deceleration_mps2",
+    "finish_rk4_step",
+    "fused_rk4_step",
+    "plant_parameters",
+    "stage_rates",
+    "warm_up",
+]
