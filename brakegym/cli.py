@@ -6,6 +6,7 @@
     brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
     brakegym trends    the paper's trends recomputed (README numbers)
     brakegym synth     synthetic recordings with concealed effects (brakegym.recordings.cli)
+    brakegym diagnose  locate and name the missing physics in recordings (brakegym.recordings.cli)
 
 JSON keys written by ``dyno``, ``simulate`` and ``mcs`` are a public interface and stay stable.
 Errors in arguments or configs end with a message on stderr and exit status 2.
@@ -347,6 +348,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .recordings.cli import add_synth_command
 
     add_synth_command(sub)
+
+    from .recordings.cli import add_diagnose_command
+
+    add_diagnose_command(sub)
     return parser
 
 

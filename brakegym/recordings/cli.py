@@ -1,4 +1,5 @@
-"""``brakegym synth``: the command-line side of :mod:`.synth` (registered by ``brakegym.cli``)."""
+"""``brakegym synth`` and ``brakegym diagnose``: the command-line side of :mod:`.synth` and
+:mod:`.diagnosis` (registered by ``brakegym.cli``)."""
 
 from __future__ import annotations
 
@@ -72,3 +73,42 @@ def add_synth_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--noise-scale", type=_scale, default=1.0, help="factor on every sensor noise level (default 1)")
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")
     p.set_defaults(func=cmd_synth)
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from .diagnosis import diagnose
+
+    result = diagnose(args.dataset_dir, top_singles=args.top_singles, pairs_from=args.pairs_from)
+    report = result.report
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+    if args.report:
+        from .diagnosis_report import write_report
+
+        path = write_report(result, args.report, Path(args.dataset_dir).name)
+        print(f"report: {path}")
+    print(f"selected: {', '.join(report['selected']) or 'nothing'}")
+    print(report["summary"])
+    return 0
+
+
+def add_diagnose_command(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "diagnose",
+        help="locate the mismatch between recordings and the model and name the missing physics",
+        description=(
+            "Fit the unmodified model and every effect of the library to a folder of recordings (initial speed, "
+            "initial disc temperature and friction factor per recording as nuisance), rank the candidates by "
+            "held-out error and an effective-sample BIC, and report the selected effects with 95 % intervals."
+        ),
+    )
+    p.add_argument("dataset_dir", metavar="DATASET_DIR", help="folder of recordings (<stem>.csv + <stem>.json)")
+    p.add_argument("--json", help="write the report as JSON (a public interface)")
+    p.add_argument("--report", metavar="DIR", help="folder for the Markdown report and its figures")
+    p.add_argument("--top-singles", type=_count("--top-singles", 1), default=3, help="screened effects fitted in full (default 3)")
+    p.add_argument("--pairs-from", type=_count("--pairs-from", 0), default=2, help="pairs among this many best singles (default 2)")
+    p.set_defaults(func=cmd_diagnose)

@@ -1,0 +1,476 @@
+"""``brakegym diagnose``: locate the mismatch between recordings and the model, name the missing
+physics from the effect library, fit it, and say how sure that is.
+
+1. Noise: from the recordings themselves (:func:`.locate.estimate_noise`).
+2. Locate: the unmodified model, each recording's initial speed, initial disc temperature and
+   friction factor fitted (:mod:`.fitting`), and its residuals: segments above noise, and the
+   axis of the state along which the residual lives (:func:`.locate.attribution`).
+3. Name: every effect of the library is screened on a grid inside its bounds (all grid points of
+   an effect simulated in one batch, the nuisance refitted linearly), the best ``top_singles`` are
+   fitted with ``scipy.optimize.least_squares`` from their best grid point, and the pairs of the
+   best ``pairs_from`` of them. Each fitted candidate is judged by
+   - the held-out error: leave one recording out, refit the effect parameters on the others (one
+     Gauss-Newton step from the full fit, the nuisance of the held-out recording refitted), and
+     predict the held-out recording;
+   - a BIC whose chi^2 is counted with an effective sample size (each channel's residual lag-1
+     autocorrelation rho: n (1 - rho) / (1 + rho)), so that autocorrelated residuals do not
+     over-reward small effects;
+   - a minimum physically relevant effect size (``RELEVANT``).
+   A candidate is selected when its BIC is lower by ``SELECT_DELTA_BIC`` than the unmodified
+   model's, its held-out error lower by ``HELDOUT_MIN_GAIN`` of it, consistently over the
+   recordings (paired t >= ``HELDOUT_MIN_T``), and its size relevant. A pair is selected over
+   its best single by the same rules.
+4. Model / show: parameters with 95 % intervals (Gauss-Newton covariance, inflated for the
+   autocorrelation), residual RMS and stop-distance errors before and after; figures and a
+   Markdown report (:mod:`.diagnosis_report`).
+5. Unexplained: with no effect selected but a residual beyond noise, a data-driven description
+   (:func:`.locate.describe_unexplained`).
+
+Thresholds (fixed before the benchmark was run): ``SELECT_DELTA_BIC`` = -10, ``HELDOUT_MIN_GAIN``
+= 0.10, ``HELDOUT_MIN_T`` = 2, ``INDISTINGUISHABLE_HELDOUT`` = 0.10, ``UNEXPLAINED_ETA2`` = 0.10,
+``MISMATCH_RMS_OVER_NOISE`` = 2.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .effects import EFFECTS, STANDARD_GRAVITY_MPS2
+from .fitting import FIT_CHANNELS, FitProblem, FitResult
+from .format import DECEL, DISC_TEMPERATURE, SPEED, Recording, read_dataset
+from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments
+from .replay import compare
+
+SELECT_DELTA_BIC = -10.0
+HELDOUT_MIN_GAIN = 0.10
+HELDOUT_MIN_T = 2.0
+INDISTINGUISHABLE_HELDOUT = 0.10
+UNEXPLAINED_ETA2 = 0.10
+MISMATCH_RMS_OVER_NOISE = 2.0
+GRID_POINTS_1D = 8  # per parameter of a one-parameter effect (even: the middle of symmetric bounds, often
+# the no-effect value, is no start); 3 per parameter for two, 2 for three
+MAX_FAILED_UNITS_SCREENED = 4
+CHANNEL_NAMES = {SPEED: "speed", DECEL: "decel", DISC_TEMPERATURE: "T_disc"}
+
+# What separates two candidates that the data cannot tell apart.
+SEPARATING_MEASUREMENT = {
+    frozenset({"friction_level", "rotating_mass"}): "the disc temperature over a whole stop (a heavier inertia brings "
+    "more energy per stop into the discs, a friction level only changes how fast) and a coasting phase (inertia slows "
+    "the coasting deceleration, friction does not act there)",
+    frozenset({"friction_level", "brake_unit_failure"}): "a temperature sensor on a disc of the rear brake units (a "
+    "failed unit stays cold, a friction level heats every disc alike)",
+    frozenset({"rotating_mass", "brake_unit_failure"}): "a temperature sensor on a rear disc, or a coasting phase",
+    frozenset({"friction_level", "speed_sensor_scale"}): "the kinematic consistency of speed against an accelerometer "
+    "(a wheel-diameter error scales speed and odometry, not the accelerometer) or an independent position reference",
+    frozenset({"gradient", "running_resistance"}): "an accelerometer (it does not see a slope, it does see running "
+    "resistance) or coasting at several speeds (a gradient is constant, resistance grows with speed)",
+    frozenset({"gradient", "friction_level"}): "coasting phases (a gradient acts without the brake) and an accelerometer",
+    frozenset({"wet_pads", "thermal_fade"}): "stops from a low speed with a hot disc (fade depends on temperature, "
+    "wet pads on the energy dissipated since the start)",
+}
+DEFAULT_SEPARATION = "coasting phases, the disc temperature and the kinematic consistency of speed, deceleration and position"
+
+
+def _relevant(effect_id: str, parameters: dict[str, float], context: dict[str, float]) -> bool:
+    """Is the fitted size physically relevant (larger than the base model's own uncertainty)?"""
+    if effect_id == "gradient":
+        return abs(parameters["gradient_permil"]) >= 1.0
+    if effect_id == "friction_level":
+        # The set's mean friction may sit up to one sigma of mu_0 (about 3 %) off nominal.
+        return abs(parameters["mu_scale"] - 1.0) >= 0.04
+    if effect_id == "wet_pads":
+        return parameters["initial_loss"] >= 0.08
+    if effect_id == "adhesion_limit":
+        return parameters["adhesion"] * STANDARD_GRAVITY_MPS2 < 0.97 * context["peak_decel_mps2"]
+    if effect_id == "thermal_fade":
+        return parameters["loss_per_100K"] >= 0.05 and parameters["onset_C"] < context["peak_disc_C"] - 20.0
+    if effect_id == "rotating_mass":
+        return abs(parameters["mass_factor"]) >= 0.03
+    if effect_id == "brake_unit_failure":
+        return parameters["failed_units"] >= 1
+    if effect_id == "running_resistance":
+        # Twice the scatter of A at a typical speed (20 m/s).
+        nominal = context["nominal_resistance"]
+        v = 20.0
+        fitted = parameters["A_N"] + parameters["B_Nspm"] * v + parameters["C_Ns2pm2"] * v * v
+        return abs(fitted - nominal(v)) >= 2.0 * context["resistance_sigma_N"]
+    if effect_id == "speed_sensor_scale":
+        return abs(parameters["scale"] - 1.0) >= 0.007
+    if effect_id == "temperature_sensor_lag":
+        return parameters["tau_s"] >= 1.0
+    raise KeyError(effect_id)
+
+
+def _grid(effect_id: str) -> list[tuple[dict[str, float], np.ndarray]]:
+    """Start points inside the bounds: (fixed integer parameters, free values)."""
+    cls = EFFECTS[effect_id]
+    integer = [s for s in cls.parameters if s.integer]
+    if integer:
+        spec = integer[0]
+        top = int(min(spec.upper, MAX_FAILED_UNITS_SCREENED))
+        return [({spec.name: float(u)}, np.zeros(0)) for u in range(max(int(spec.lower), 1), top + 1)]
+    specs = cls.parameters
+    per = {1: GRID_POINTS_1D, 2: 3, 3: 2}[len(specs)]
+    axes = [spec.lower + (np.arange(per) + 0.5) / per * (spec.upper - spec.lower) for spec in specs]
+    return [({}, np.array(point)) for point in itertools.product(*axes)]
+
+
+@dataclass
+class Candidate:
+    effect_ids: tuple[str, ...]
+    fit: FitResult
+    chi2_eff: float
+    delta_bic: float
+    heldout_sse: np.ndarray  # per recording, effective
+    report: dict[str, Any] = field(default_factory=dict)
+    relevant: bool = True
+
+
+@dataclass
+class Diagnosis:
+    report: dict[str, Any]
+    recordings: list[Recording]
+    baseline: FitResult
+    selected: Candidate | None
+    problem: FitProblem
+
+
+class Diagnoser:
+    def __init__(self, recordings: Sequence[Recording], top_singles: int = 3, pairs_from: int = 2) -> None:
+        self.recordings = list(recordings)
+        vehicles = {r.vehicle.name for r in self.recordings}
+        if len(vehicles) > 1:
+            raise ValueError(f"the recordings are of several vehicles {sorted(vehicles)}; diagnose one vehicle at a time")
+        self.top_singles = top_singles
+        self.pairs_from = pairs_from
+        self.noise = estimate_noise(self.recordings)
+        fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
+        self.problem = FitProblem(self.recordings, fit_noise)
+        vehicle = self.recordings[0].vehicle
+        resistance = vehicle.running_resistance
+        decels = [r.channel(DECEL) for r in self.recordings if r.channel(DECEL) is not None]
+        temps = [r.channel(DISC_TEMPERATURE) for r in self.recordings if r.channel(DISC_TEMPERATURE) is not None]
+        self.context = {
+            "peak_decel_mps2": float(max(np.nanpercentile(d, 99) for d in decels)) if decels else math.inf,
+            "peak_disc_C": float(max(np.nanmax(t) for t in temps)) if temps else math.inf,
+            "nominal_resistance": lambda v: resistance.A_N + resistance.B_N_per_mps * v + resistance.C_N_per_mps2 * v * v,
+            "resistance_sigma_N": resistance.A_sigma_N,
+        }
+
+    # -- weights ---------------------------------------------------------------------------
+    def _effective_weights(self, residual: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+        """Per row, the share of a sample each residual is worth (n_eff / n of its channel)."""
+        problem = self.problem
+        weights = np.ones(len(residual))
+        shares = {}
+        for index, channel in enumerate(FIT_CHANNELS):
+            rows = problem.channel_of == index
+            if not rows.any():
+                continue
+            products, squares = [], []
+            for i in range(problem.n):
+                r = residual[rows & (problem.recording_of == i)]
+                if len(r) > 2:
+                    products.append(np.sum(r[1:] * r[:-1]))
+                    squares.append(np.sum(r**2))
+            rho = float(np.clip(np.sum(products) / max(np.sum(squares), 1e-12), 0.0, 0.999))
+            share = (1.0 - rho) / (1.0 + rho)
+            weights[rows] = share
+            shares[channel] = share
+        return weights, shares
+
+    def _chi2(self, residual: np.ndarray) -> float:
+        return float(np.sum(self.weights * residual**2))
+
+    # -- held out --------------------------------------------------------------------------
+    def _heldout(self, fit: FitResult) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals of each recording predicted with the effect parameters fitted without it
+        (one weighted Gauss-Newton step from the full fit), and their effective SSE per
+        recording (data rows and its friction-factor prior)."""
+        problem = self.problem
+        p = len(fit.free)
+        r = fit.residual
+        if p == 0:
+            held = r.copy()
+        else:
+            held = r.copy()
+            projected, blocks = [], []
+            for i in range(problem.n):
+                rows = np.flatnonzero(problem.recording_of == i)
+                columns = problem.nuisance_columns(p, i)
+                q, _ = np.linalg.qr(fit.jacobian[np.ix_(rows, columns)])
+                effect = fit.jacobian[rows, :p]
+                a = effect - q @ (q.T @ effect)
+                w = self.weights[rows]
+                blocks.append((rows, a, w))
+                projected.append(a.T @ (w[:, None] * a))
+            total = np.sum(projected, axis=0)
+            for i, (rows, a, w) in enumerate(blocks):
+                others = total - projected[i] + 1e-9 * np.eye(p)
+                step = np.linalg.solve(others, a.T @ (w * r[rows]))
+                held[rows] = r[rows] + a @ step
+        # The held-out recording's friction-factor prior row counts: a set-wide friction shift
+        # shows up there (its own factor refitted far from 1), not in its data rows.
+        sse = np.array([np.sum((self.weights * held**2)[problem.recording_of == i]) for i in range(problem.n)])
+        return held, sse
+
+    # -- per-channel summaries --------------------------------------------------------------
+    def _rms(self, residual: np.ndarray) -> dict[str, float]:
+        out = {}
+        for index, channel in enumerate(FIT_CHANNELS):
+            rows = self.problem.channel_of == index
+            if rows.any():
+                out[channel] = round(float(np.sqrt(np.mean(residual[rows] ** 2)) * self.problem.noise[channel]), 4)
+        return out
+
+    def _stop_errors(self, fit: FitResult) -> dict[str, float]:
+        errors = [compare(r).stop_distance_error_m for r in fit.replays]
+        errors = np.array([e for e in errors if np.isfinite(e)])
+        if not errors.size:
+            return {"rms_m": float("nan"), "max_abs_m": float("nan")}
+        return {"rms_m": round(float(np.sqrt(np.mean(errors**2))), 2), "max_abs_m": round(float(np.max(np.abs(errors))), 2)}
+
+    def _ci95(self, fit: FitResult) -> dict[str, list[float]]:
+        p = len(fit.free)
+        out: dict[str, list[float]] = {}
+        if p:
+            jac = fit.jacobian
+            w = self.weights
+            normal = jac.T @ (w[:, None] * jac)
+            dof = max(self.n_eff_total - jac.shape[1], 1.0)
+            variance = self._chi2(fit.residual) / dof
+            try:
+                covariance = np.linalg.pinv(normal)[:p, :p] * variance
+            except np.linalg.LinAlgError:
+                covariance = np.full((p, p), np.nan)
+            for j, parameter in enumerate(fit.free):
+                half = 1.96 * math.sqrt(max(covariance[j, j], 0.0))
+                value = fit.x[j]
+                out[parameter.name] = [
+                    round(float(max(value - half, parameter.spec.lower)), 5),
+                    round(float(min(value + half, parameter.spec.upper)), 5),
+                ]
+        for name, value in fit.fixed.items():
+            out[name] = [value, value]
+        return out
+
+    # -- the diagnosis -----------------------------------------------------------------------
+    def run(self) -> Diagnosis:
+        problem = self.problem
+        baseline = problem.fit([], problem.initial_nuisance)
+        self.weights, self.channel_shares = self._effective_weights(baseline.residual)
+        self.n_eff_total = float(np.sum(self.weights[problem.channel_of >= 0]))
+        log_n = math.log(max(self.n_eff_total, 2.0))
+        chi2_base = self._chi2(baseline.residual)
+        _, base_sse = self._heldout(baseline)
+        profile = problem.profiler(baseline.jacobian[:, : 3 * problem.n])
+
+        # Screening: every grid point of an effect in one batch, nuisance refitted linearly.
+        screened = []
+        for effect_id in EFFECTS:
+            grid = _grid(effect_id)
+            by_fixed: dict[tuple, list[np.ndarray]] = {}
+            for fixed, theta in grid:
+                by_fixed.setdefault(tuple(sorted(fixed.items())), []).append(theta)
+            for fixed_items, thetas in by_fixed.items():
+                fixed = dict(fixed_items)
+                free = problem.free_parameters([effect_id], fixed)
+                points = np.array([np.concatenate([t, baseline.x]) for t in thetas])
+                residuals, _ = problem.simulate([effect_id], fixed, free, points)
+                for theta, residual in zip(thetas, residuals):
+                    chi2 = self._chi2(profile.project(residual)[0])
+                    screened.append((chi2, effect_id, fixed, theta))
+        best_start: dict[str, tuple[float, dict, np.ndarray]] = {}
+        for chi2, effect_id, fixed, theta in screened:
+            if effect_id not in best_start or chi2 < best_start[effect_id][0]:
+                best_start[effect_id] = (chi2, fixed, theta)
+        # One profiled Gauss-Newton step from each effect's best grid point: a grid this coarse
+        # leaves a small effect between two points.
+        for effect_id, (chi2, fixed, theta) in list(best_start.items()):
+            free = problem.free_parameters([effect_id], fixed)
+            if not free:
+                continue
+            point = np.concatenate([theta, baseline.x])
+            base_residual, jac = problem.jacobian([effect_id], fixed, free, point, nuisance_too=False)
+            projected, _ = profile.project(base_residual)
+            columns = profile.project_columns(jac[:, : len(free)]) * np.sqrt(self.weights)[:, None]
+            step, *_ = np.linalg.lstsq(columns, -projected * np.sqrt(self.weights), rcond=None)
+            lower, upper = problem.bounds(free)
+            refined = np.clip(theta + step, lower[: len(free)], upper[: len(free)])
+            residual, _ = problem.simulate([effect_id], fixed, free, np.concatenate([refined, baseline.x])[None])
+            refined_chi2 = self._chi2(profile.project(residual[0])[0])
+            if refined_chi2 < chi2:
+                best_start[effect_id] = (refined_chi2, fixed, refined)
+        order = sorted(best_start, key=lambda e: best_start[e][0])
+
+        def judge(effect_ids: tuple[str, ...], fit: FitResult) -> Candidate:
+            chi2 = self._chi2(fit.residual)
+            p = len(fit.free) + len(fit.fixed)
+            _, sse = self._heldout(fit)
+            candidate = Candidate(effect_ids, fit, chi2, chi2 - chi2_base + p * log_n, sse)
+            candidate.relevant = all(
+                _relevant(eid, {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, self.context)
+                for eid in effect_ids
+            )
+            return candidate
+
+        singles: list[Candidate] = []
+        for effect_id in order[: self.top_singles]:
+            _, fixed, theta = best_start[effect_id]
+            fit = problem.fit([effect_id], np.concatenate([theta, baseline.x]), fixed=fixed, max_iterations=8)
+            singles.append(judge((effect_id,), fit))
+        singles.sort(key=lambda c: c.delta_bic)
+        pairs: list[Candidate] = []
+        for a, b in itertools.combinations(singles[: self.pairs_from], 2):
+            ids = tuple(sorted((a.effect_ids[0], b.effect_ids[0]), key=list(EFFECTS).index))
+            first, second = (a, b) if ids[0] == a.effect_ids[0] else (b, a)
+            fixed = {**first.fit.fixed, **second.fit.fixed}
+            start = np.concatenate([first.fit.x[: len(first.fit.free)], second.fit.x[: len(second.fit.free)], baseline.x])
+            fit = problem.fit(list(ids), start, fixed=fixed, max_iterations=8)
+            pairs.append(judge(ids, fit))
+
+        def beats(candidate: Candidate, reference_bic: float, reference_sse: np.ndarray) -> bool:
+            d = reference_sse - candidate.heldout_sse
+            gain = float(np.sum(d) / max(np.sum(reference_sse), 1e-12))
+            spread = float(np.std(d, ddof=1)) if len(d) > 1 else 0.0
+            t = math.inf if spread == 0 else float(np.mean(d) / (spread / math.sqrt(len(d))))
+            candidate.report["heldout_gain"] = round(gain, 4)
+            candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
+            return (
+                candidate.relevant
+                and candidate.delta_bic - reference_bic < SELECT_DELTA_BIC
+                and gain >= HELDOUT_MIN_GAIN
+                and t >= HELDOUT_MIN_T
+            )
+
+        passing = [c for c in singles if beats(c, 0.0, base_sse)]
+        selected = min(passing, key=lambda c: float(np.sum(c.heldout_sse))) if passing else None
+        if selected is not None:
+            for pair in pairs:
+                if selected.effect_ids[0] in pair.effect_ids and beats(pair, selected.delta_bic, selected.heldout_sse):
+                    if float(np.sum(pair.heldout_sse)) < float(np.sum(selected.heldout_sse)):
+                        selected = pair
+        else:
+            for pair in pairs:
+                beats(pair, 0.0, base_sse)
+
+        indistinguishable = []
+        if selected is not None and len(selected.effect_ids) == 1:
+            best_sse = float(np.sum(selected.heldout_sse))
+            for other in passing:
+                if other is selected:
+                    continue
+                close = float(np.sum(other.heldout_sse)) <= (1.0 + INDISTINGUISHABLE_HELDOUT) * best_sse
+                if close and abs(other.delta_bic - selected.delta_bic) < -SELECT_DELTA_BIC * 10:
+                    indistinguishable.append([selected.effect_ids[0], other.effect_ids[0]])
+
+        # Locate: residuals of the unmodified model.
+        traces = [residual_trace(r) for r in baseline.replays]
+        shares = attribution(traces)
+        base_rms = self._rms(baseline.residual)
+        over_noise = {c: base_rms[c] / problem.noise[c] for c in base_rms}
+        mismatch_channels = [CHANNEL_NAMES[c] for c, ratio in over_noise.items() if ratio >= MISMATCH_RMS_OVER_NOISE]
+        unexplained = None
+        if selected is None:
+            best_eta = max((max(v.values()) for v in shares.values()), default=0.0)
+            if best_eta >= UNEXPLAINED_ETA2 and mismatch_channels:
+                unexplained = describe_unexplained(traces, shares)
+        significant = selected is not None or unexplained is not None
+
+        base_heldout_rms = self._rms(baseline.residual)
+        base_stop = self._stop_errors(baseline)
+        candidates_out = []
+        for candidate in sorted(singles + pairs, key=lambda c: c.delta_bic):
+            fit = candidate.fit
+            held, _ = self._heldout(fit)
+            candidate.report.update(
+                {
+                    "effects": list(candidate.effect_ids),
+                    "parameters": {k: round(v, 5) for k, v in fit.parameters.items()},
+                    "ci95": self._ci95(fit),
+                    "rms_before": base_rms,
+                    "rms_after": self._rms(fit.residual),
+                    "heldout_rms_before": base_heldout_rms,
+                    "heldout_rms_after": self._rms(held),
+                    "delta_bic": round(candidate.delta_bic, 1),
+                    "relevant_size": candidate.relevant,
+                    "stop_distance_error_before": base_stop,
+                    "stop_distance_error_after": self._stop_errors(fit),
+                }
+            )
+            candidates_out.append(candidate.report)
+        screened_out = {
+            effect_id: {"chi2_eff_profiled": round(best_start[effect_id][0], 1), "fitted": effect_id in {c.effect_ids[0] for c in singles}}
+            for effect_id in order
+        }
+
+        report = {
+            "recordings": problem.n,
+            "noise": {k: round(v, 5) for k, v in self.noise.items()},
+            "mismatch": {
+                "significant": significant,
+                "channels": mismatch_channels if significant else [],
+                "segments": segments(traces, problem.noise),
+                "rms_over_noise": {CHANNEL_NAMES[c]: round(v, 2) for c, v in over_noise.items()},
+                "attribution_eta2": shares,
+            },
+            "candidates": candidates_out,
+            "selected": list(selected.effect_ids) if selected else [],
+            "parameters": dict(selected.report["parameters"]) if selected else {},
+            "indistinguishable": indistinguishable,
+            "separating_measurements": {
+                " / ".join(pair): SEPARATING_MEASUREMENT.get(frozenset(pair), DEFAULT_SEPARATION) for pair in indistinguishable
+            },
+            "unexplained": unexplained["text"] if unexplained else None,
+            "unexplained_fit": unexplained,
+            "screening": screened_out,
+            "effective_sample_share": {CHANNEL_NAMES[c]: round(v, 4) for c, v in self.channel_shares.items()},
+            "trains_simulated": problem.simulations,
+        }
+        report["summary"] = _summary(report, selected)
+        return Diagnosis(report, self.recordings, baseline, selected, problem)
+
+
+def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
+    n = report["recordings"]
+    noise = report["noise"]
+    noise_text = (
+        f"noise {noise.get(SPEED, float('nan')):.3f} m/s in speed, {noise.get(DECEL, float('nan')):.3f} m/s^2 in deceleration "
+        f"and {noise.get(DISC_TEMPERATURE, float('nan')):.2f} K in disc temperature"
+    )
+    if selected is not None:
+        parameters = ", ".join(
+            f"{name} = {value:g} (95 % {ci[0]:g}..{ci[1]:g})"
+            for name, value in selected.report["parameters"].items()
+            for ci in [selected.report["ci95"][name]]
+        )
+        before, after = selected.report["heldout_rms_before"], selected.report["heldout_rms_after"]
+        change = "; ".join(f"{c} {before[c]:g} -> {after[c]:g}" for c in before)
+        text = (
+            f"Across {n} recordings ({noise_text}) the unmodified model misses the measurements beyond noise and friction "
+            f"scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: it lowers the held-out "
+            f"residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
+        )
+        if report["indistinguishable"]:
+            pairs = "; ".join(f"{a} and {b}: {report['separating_measurements'][a + ' / ' + b]}" for a, b in report["indistinguishable"])
+            text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
+        return text
+    if report["unexplained"]:
+        return f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library explains it. {report['unexplained']}"
+    return (
+        f"Across {n} recordings ({noise_text}) the unmodified model fits within noise and friction scatter once each "
+        "recording's initial speed, initial disc temperature and friction factor are fitted; no effect of the library "
+        "improves the held-out fit enough to be selected."
+    )
+
+
+def diagnose(dataset_dir: str | Path, top_singles: int = 3, pairs_from: int = 2) -> Diagnosis:
+    """Diagnose the recordings of ``dataset_dir`` (see the module doc)."""
+    dataset = read_dataset(dataset_dir)
+    return Diagnoser(dataset.recordings, top_singles, pairs_from).run()
