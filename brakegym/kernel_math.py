@@ -89,7 +89,8 @@ EXP_OVERFLOW = 710.0
 EXP_FLUSH = -708.0
 SMALLEST_NORMAL = 2.2250738585072014e-308
 SUBNORMAL_SCALE = 18014398509481984.0  # 2^54
-SQRT2 = 1.4142135623730951
+SQRT_HALF_BITS = 0x3FE6A09E667F3BCD  # the bits of sqrt(2) / 2
+EXPONENT_FIELD = -(1 << 52)  # 0xFFF0000000000000 as int64: the sign and exponent bits
 # log(1 + f) = f - f^2/2 + s (f^2/2 + R(s^2)), s = f / (2 + f): fdlibm's minimax coefficients.
 LG1 = 6.666666666666735130e-01
 LG2 = 3.999999999940941908e-01
@@ -98,9 +99,6 @@ LG4 = 2.222219843214978396e-01
 LG5 = 1.818357216161805012e-01
 LG6 = 1.531383769920937332e-01
 LG7 = 1.479819860511658591e-01
-EXPONENT_MASK = 0x7FF
-MANTISSA_MASK = 0x000FFFFFFFFFFFFF
-EXPONENT_OF_ONE = 0x3FF0000000000000
 
 
 @numba.njit(**JIT_OPTIONS)
@@ -110,8 +108,8 @@ def _power_of_two(n):
 
 
 @numba.njit(**JIT_OPTIONS)
-def exp(x):
-    """e^x, within 1 ulp; above 709.78 inf, below -708 zero, nan stays nan."""
+def _exp_of_number(x):
+    """e^x for x not nan (see :func:`exp`)."""
     # Clamp first so that the integer conversion below never sees nan or a huge value.
     clamped = choose(x > EXP_FLUSH, x, EXP_FLUSH)
     clamped = choose(clamped < EXP_OVERFLOW, clamped, EXP_OVERFLOW)
@@ -133,23 +131,25 @@ def exp(x):
     n = numba.int64(n_float)
     half = n >> 1
     result = (p * _power_of_two(half)) * _power_of_two(n - half)
-    result = choose(x > EXP_FLUSH, result, 0.0)
-    return choose(x == x, result, x)
+    return choose(x > EXP_FLUSH, result, 0.0)
 
 
 @numba.njit(**JIT_OPTIONS)
-def log(x):
-    """Natural logarithm, within 1 ulp; log(0) = -inf, log(inf) = inf, negative or nan -> nan."""
+def exp(x):
+    """e^x, within 1 ulp; above 709.78 inf, below -708 zero, nan stays nan."""
+    return choose(x == x, _exp_of_number(x), x)
+
+
+@numba.njit(**JIT_OPTIONS)
+def _log_of_positive(x):
+    """ln x for 0 < x < inf (see :func:`log`); any other x gives some finite number."""
     subnormal = x < SMALLEST_NORMAL
-    scaled = choose(subnormal, x * SUBNORMAL_SCALE, x)
-    bits = _bits_of(scaled)
-    exponent = ((bits >> 52) & EXPONENT_MASK) - _choose_integer(subnormal, 1023 + 54, 1023)
-    # The mantissa as m in [1, 2), then in [sqrt(2)/2, sqrt(2)) so that f = m - 1 is small.
-    m = _float_of((bits & MANTISSA_MASK) | EXPONENT_OF_ONE)
-    large = m > SQRT2
-    m = choose(large, m * 0.5, m)
-    exponent = _choose_integer(large, exponent + 1, exponent)
-    f = m - 1.0
+    bits = _bits_of(choose(subnormal, x * SUBNORMAL_SCALE, x))
+    # x = 2^k m with m in [sqrt(2)/2, sqrt(2)), so that f = m - 1 is small, without a branch:
+    # offsetting the bits by those of sqrt(2)/2 moves the exponent boundary there (musl's log).
+    shifted = bits - SQRT_HALF_BITS
+    k = numba.float64((shifted >> 52) - _choose_integer(subnormal, 54, 0))
+    f = _float_of(bits - (shifted & EXPONENT_FIELD)) - 1.0
     s = f / (2.0 + f)
     z = s * s
     w = z * z
@@ -157,9 +157,13 @@ def log(x):
     even = z * (LG1 + w * (LG3 + w * (LG5 + w * LG7)))
     r = even + odd
     half_f_squared = 0.5 * f * f
-    k = numba.float64(exponent)
-    result = k * LN2_HIGH - ((half_f_squared - (s * (half_f_squared + r) + k * LN2_LOW)) - f)
-    result = choose(x > 0.0, result, choose(x == 0.0, -math.inf, math.nan))
+    return k * LN2_HIGH - ((half_f_squared - (s * (half_f_squared + r) + k * LN2_LOW)) - f)
+
+
+@numba.njit(**JIT_OPTIONS)
+def log(x):
+    """Natural logarithm, within 1 ulp; log(0) = -inf, log(inf) = inf, negative or nan -> nan."""
+    result = choose(x > 0.0, _log_of_positive(x), choose(x == 0.0, -math.inf, math.nan))
     return choose(x < math.inf, result, x)  # inf stays inf, nan stays nan
 
 
@@ -170,8 +174,14 @@ def _compiled_fractional_power(base, exponent):
 
     def power(base, exponent):
         # e^(y ln x): the error of ln x is scaled by |y ln x| (below 10 in this model, so a few
-        # ulp). x = 0 gives 0 (y > 0) or inf (y < 0) through ln 0 = -inf; y = 0 gives 1.
-        return choose(exponent != 0.0, exp(exponent * log(base)), 1.0)
+        # ulp). The cores skip the special cases, handled once here: x = 0, inf, nan, negative.
+        result = _exp_of_number(exponent * _log_of_positive(base))
+        at_zero = choose(exponent > 0.0, 0.0, choose(exponent < 0.0, math.inf, 1.0))
+        at_infinity = choose(exponent > 0.0, math.inf, choose(exponent < 0.0, 0.0, 1.0))
+        result = choose(base > 0.0, result, choose(base == 0.0, at_zero, math.nan))
+        result = choose(base < math.inf, result, choose(base == math.inf, at_infinity, math.nan))
+        result = choose(exponent != 0.0, result, 1.0)
+        return choose(exponent == exponent, result, math.nan)
 
     return power
 

@@ -92,10 +92,15 @@ def test_fractional_power_over_the_model_range(exponent):
     np.testing.assert_array_equal(out[:4], [0.0, 1.0, np.inf, np.nan])
 
 
-def test_fractional_power_of_zero_exponent_is_one():
-    out = np.empty(3)
-    _power_each(np.array([0.0, 2.0, 1e-300]), 0.0, out)
+def test_fractional_power_special_cases():
+    out = np.empty(4)
+    _power_each(np.array([0.0, 2.0, 1e-300, np.inf]), 0.0, out)
     np.testing.assert_array_equal(out, 1.0)
+    _power_each(np.array([0.0, np.inf, -2.0, 1e-310]), -0.5, out)
+    np.testing.assert_array_equal(out[:3], [np.inf, 0.0, np.nan])
+    assert out[3] == pytest.approx(1e-310**-0.5, rel=1e-14)  # subnormal base
+    _power_each(np.array([2.0]), np.nan, out[:1])
+    assert np.isnan(out[0])
 
 
 # ------------------------------------------------------------------------------------------------
