@@ -5,6 +5,7 @@
     brakegym simulate  one train stop
     brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
     brakegym trends    the paper's trends recomputed (README numbers)
+    brakegym train | evaluate | stress   controllers on the environments (brakegym.cli_agents)
     brakegym synth     synthetic recordings with concealed effects (brakegym.recordings.cli)
     brakegym diagnose  locate and name the missing physics in recordings (brakegym.recordings.cli)
 
@@ -344,6 +345,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="write the trends as JSON")
     p.add_argument("--step", **step)
     p.set_defaults(func=cmd_trends)
+
+    from .cli_agents import add_commands
+
+    add_commands(sub)
 
     from .recordings.cli import add_synth_command
 

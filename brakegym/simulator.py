@@ -204,6 +204,13 @@ class CommandedPressure:
             command = np.broadcast_to(command, self._pressure.shape).copy()
         self._command = command
 
+    def reset_trains(self, index: np.ndarray, pressure_bar: float = 0.0) -> None:
+        """Give the trains ``index`` a new start: cylinders at ``pressure_bar``, commanded so, and
+        no earlier commands waiting in their dead time (an environment restarting episodes)."""
+        self._pressure[index] = pressure_bar
+        self._history[:, index] = pressure_bar
+        self._command[index] = pressure_bar
+
     def _target(self) -> np.ndarray:
         slots = len(self._history)
         self._history[self._step % slots] = self._command
@@ -314,7 +321,7 @@ class Simulator:
 
         n = conditions.n_trains
         disc_shape = (*plant.disc_shape, n)
-        self.mass_kg = np.asarray(conditions.mass_kg, dtype=float).reshape(n)
+        self.mass_kg = np.array(conditions.mass_kg, dtype=float).reshape(n)  # own copy: reset_trains writes it
         self._inverse_mass = 1.0 / self.mass_kg
         self.resistance_A_N = np.broadcast_to(np.asarray(conditions.running_resistance_A_N, dtype=float), (n,)).copy()
         self.power_coefficient = self.to_internal(conditions.power_coefficient_per_s)
@@ -336,6 +343,41 @@ class Simulator:
         self.stop_time_s = np.full(n, np.nan)
         self.step_index = 0
         self.last_step: StepRecord | None = None
+
+    def reset_trains(self, index: np.ndarray, conditions: BatchConditions) -> None:
+        """Restart the trains ``index`` from ``conditions`` (a batch of ``len(index)``), leaving
+        the others as they are: an environment starting new episodes for some of its trains.
+
+        Their integrals (work, heat, mu distance) and position start again at zero; the time of
+        the simulator runs on, so time-dependent extensions see the batch's clock.
+        """
+        index = np.asarray(index, dtype=np.int64)
+        n = len(index)
+        if conditions.n_trains != n:
+            raise ValueError(f"reset_trains: {n} trains to restart but conditions for {conditions.n_trains}")
+        shape = (n, *self.plant.disc_shape)
+
+        def internal(per_disc: np.ndarray | float) -> np.ndarray:
+            return np.moveaxis(np.broadcast_to(np.asarray(per_disc, dtype=float), shape), 0, -1)
+
+        speed = np.broadcast_to(np.asarray(conditions.initial_speed_mps, dtype=float), (n,))
+        if np.any(speed < 0):
+            raise ValueError("initial speeds must not be negative")
+        self.mass_kg[index] = conditions.mass_kg
+        self._inverse_mass[index] = 1.0 / self.mass_kg[index]
+        self.resistance_A_N[index] = conditions.running_resistance_A_N
+        self.ambient_K[index] = conditions.ambient_temperature_K
+        if not self.power_coefficient.flags.writeable:  # a broadcast view when all trains shared it
+            self.power_coefficient = self.power_coefficient.copy()
+        self.power_coefficient[..., index] = internal(conditions.power_coefficient_per_s)
+        self.disc[..., index] = 0.0
+        self.disc[MU][..., index] = internal(conditions.initial_mu)
+        self.disc[T_FRIC][..., index] = internal(conditions.initial_friction_temperature_K)
+        self.disc[T_DISC][..., index] = internal(conditions.initial_disc_temperature_K)
+        self.train[:, index] = 0.0
+        self.train[SPEED, index] = speed
+        self.moving[index] = speed > 0
+        self.stop_time_s[index] = np.nan
 
     # ----------------------------------------------------------------------------------------
     @property

@@ -1,0 +1,275 @@
+"""The batch of trains behind every brakegym environment, and the task interface.
+
+:class:`TrainFleet` holds N trains of one vehicle in one :class:`~brakegym.simulator.Simulator`:
+it restarts any subset of them (new speed, load, friction draw, disc temperatures), turns the
+policy's actions into per-axle cylinder pressure commands, runs the physics substeps of one
+control step and measures what the train's sensors would report. A :class:`BrakeTask` adds what
+one task draws, observes and rewards. The single and the vector environments
+(:mod:`brakegym.envs.env`) are thin shells around these two, so that the physics of a control step
+exists once, vectorised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from .. import config as cfg
+from ..applications import KELVIN, train_plant
+from ..physics import BrakeCylinder, draw_friction, draw_running_resistance
+from ..simulator import MU, POSITION, SPEED, T_DISC, T_FRIC, BatchConditions, CommandedPressure, Simulator
+from .config import BrakeEnvConfig
+
+
+@dataclass
+class Episodes:
+    """Per-train episode bookkeeping, arrays of length N."""
+
+    step: np.ndarray  # control steps taken in this episode
+    load_index: np.ndarray  # index into the vehicle's loads
+    initial_speed_mps: np.ndarray
+    mass_kg: np.ndarray
+    peak_jerk_mps3: np.ndarray
+    peak_friction_temperature_C: np.ndarray
+    extras: dict[str, np.ndarray] = field(default_factory=dict)  # what the task draws per episode
+
+
+def _as_batch(value: Any, n: int, name: str) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        return np.full(n, float(array))
+    if array.shape != (n,):
+        raise ValueError(f"reset option {name!r}: expected a number or {n} values, got shape {array.shape}")
+    return array.copy()
+
+
+class TrainFleet:
+    """N trains of ``config.vehicle`` with their brakes, stepped together.
+
+    Actions are per control group in [-1, 1] and map linearly to 0..``max_cylinder_pressure_bar``;
+    values outside [-1, 1] are clipped to it (as the action space documents), NaN or a wrong shape
+    is refused.
+    """
+
+    def __init__(self, config: BrakeEnvConfig, n_trains: int):
+        if n_trains < 1:
+            raise ValueError(f"n_trains = {n_trains}: need at least one train")
+        self.config = config
+        self.n_trains = n_trains
+        self.vehicle: cfg.Vehicle = cfg.load("vehicles", config.vehicle)
+        self.material = cfg.load("materials", self.vehicle.material)
+        self.setup = cfg.load("setups", config.setup)
+        self.plant = train_plant(self.vehicle)
+        self.cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", config.actuation))
+        self.max_pressure_bar = self.vehicle.max_cylinder_pressure_bar
+        self.vehicle_loads = list(self.vehicle.loads)
+        self.control_step_s = config.control_step_s
+        self.substeps = config.substeps
+
+        axles = self.plant.n_axles
+        if config.control_groups == "train":
+            self.group_of_axle = np.zeros(axles, dtype=np.int64)
+        elif config.control_groups == "bogie":
+            self.group_of_axle = np.arange(axles) // self.vehicle.axles_per_bogie
+        else:
+            self.group_of_axle = np.arange(axles)
+        self.n_groups = int(self.group_of_axle.max()) + 1
+
+        self.pressure = CommandedPressure([self.cylinder] * n_trains, axles, config.physics_step_s)
+        ambient_K = self.vehicle.ambient_temperature_C + KELVIN
+        disc_shape = (n_trains, *self.plant.disc_shape)
+        # Trains start at standstill until their first reset gives them a speed.
+        idle = BatchConditions(
+            mass_kg=np.full(n_trains, self.vehicle.mass_kg(config.loads[0])),
+            initial_speed_mps=np.zeros(n_trains),
+            initial_mu=np.full(disc_shape, self.material.initial_mu),
+            power_coefficient_per_s=np.full(disc_shape, self.material.power_coefficient_per_s),
+            running_resistance_A_N=np.full(n_trains, self.vehicle.running_resistance.A_N),
+            initial_friction_temperature_K=np.full(disc_shape, ambient_K),
+            initial_disc_temperature_K=np.full(disc_shape, ambient_K),
+            ambient_temperature_K=np.full(n_trains, ambient_K),
+        )
+        self.sim = Simulator(self.plant, idle, self.pressure, step_s=config.physics_step_s)
+        self.episodes = Episodes(
+            step=np.zeros(n_trains, dtype=np.int64),
+            load_index=np.zeros(n_trains, dtype=np.int64),
+            initial_speed_mps=np.zeros(n_trains),
+            mass_kg=idle.mass_kg.copy(),
+            peak_jerk_mps3=np.zeros(n_trains),
+            peak_friction_temperature_C=np.zeros(n_trains),
+        )
+        self.started = np.zeros(n_trains, dtype=bool)
+        self.deceleration_mps2 = np.zeros(n_trains)  # mean over the last control step
+        self.previous_deceleration_mps2 = np.zeros(n_trains)
+        self.overrun = np.zeros(n_trains, dtype=bool)
+        instrumented = config.instrumented_disc - 1
+        self.observed_discs = (
+            np.arange(self.plant.n_discs) if config.observed_temperatures == "all" else np.array([instrumented])
+        )
+
+    # -------------------------------------------------------------------------------------------
+    def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        """Start new episodes for the trains ``index``: draw (or take from ``options``) the initial
+        speed, load, friction scatter and disc temperatures, and release their brakes."""
+        n = len(index)
+        config, vehicle = self.config, self.vehicle
+        # Every draw happens whatever the options fix, so that fixing one quantity leaves the
+        # random stream (and so every other quantity) of a seed unchanged.
+        speed_kmh = rng.uniform(config.initial_speed_kmh.low, config.initial_speed_kmh.high, n)
+        load_index = rng.integers(0, len(config.loads), n)
+        temperature_C = rng.uniform(config.initial_disc_temperature_C.low, config.initial_disc_temperature_C.high, n)
+        setup = self.setup
+        if "setup" in options:
+            setup = cfg.load("setups", str(options["setup"]))
+        friction = draw_friction(rng, self.material, setup, n, self.plant.disc_shape)
+        resistance_A_N = draw_running_resistance(rng, vehicle.running_resistance, setup, n)
+
+        if "initial_speed_kmh" in options:
+            speed_kmh = _as_batch(options["initial_speed_kmh"], n, "initial_speed_kmh")
+            if np.any(~(speed_kmh > 0)):
+                raise ValueError(f"reset option 'initial_speed_kmh' = {options['initial_speed_kmh']}: must be positive")
+        load_names = [config.loads[i] for i in load_index]
+        if "load" in options:
+            load = options["load"]
+            if load not in vehicle.loads:
+                raise ValueError(f"reset option 'load' = {load!r}: loads of {vehicle.name!r} are {sorted(vehicle.loads)}")
+            load_names = [load] * n
+
+        disc_shape = (n, *self.plant.disc_shape)
+        friction_K = np.broadcast_to((temperature_C + KELVIN)[:, None, None], disc_shape).copy()
+        disc_K = friction_K.copy()
+        if config.carry_over_thermal_state:
+            carried = self.started[index]
+            friction_K[carried] = self.sim.to_external(self.sim.disc[T_FRIC])[index[carried]].reshape(-1, *self.plant.disc_shape)
+            disc_K[carried] = self.sim.to_external(self.sim.disc[T_DISC])[index[carried]].reshape(-1, *self.plant.disc_shape)
+        if "initial_disc_temperature_C" in options:
+            fixed = _as_batch(options["initial_disc_temperature_C"], n, "initial_disc_temperature_C") + KELVIN
+            friction_K[:] = fixed[:, None, None]
+            disc_K[:] = fixed[:, None, None]
+
+        mass_kg = np.array([vehicle.mass_kg(load) for load in load_names])
+        conditions = BatchConditions(
+            mass_kg=mass_kg,
+            initial_speed_mps=speed_kmh / 3.6,
+            initial_mu=friction.initial_mu,
+            power_coefficient_per_s=friction.power_coefficient_per_s,
+            running_resistance_A_N=resistance_A_N,
+            initial_friction_temperature_K=friction_K,
+            initial_disc_temperature_K=disc_K,
+            ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + KELVIN),
+        )
+        self.sim.reset_trains(index, conditions)
+        self.pressure.reset_trains(index, 0.0)
+
+        episodes = self.episodes
+        episodes.step[index] = 0
+        episodes.load_index[index] = [self.vehicle_loads.index(load) for load in load_names]
+        episodes.initial_speed_mps[index] = speed_kmh / 3.6
+        episodes.mass_kg[index] = mass_kg
+        episodes.peak_jerk_mps3[index] = 0.0
+        episodes.peak_friction_temperature_C[index] = friction_K.reshape(n, -1).max(axis=1) - KELVIN
+        self.deceleration_mps2[index] = 0.0
+        self.previous_deceleration_mps2[index] = 0.0
+        self.overrun[index] = False
+        self.started[index] = True
+
+    # -------------------------------------------------------------------------------------------
+    def commands_bar(self, actions: np.ndarray) -> np.ndarray:
+        """Per-axle cylinder pressure commands (N, axles) from actions (N, groups) in [-1, 1]."""
+        actions = np.asarray(actions, dtype=float)
+        if actions.shape != (self.n_trains, self.n_groups):
+            raise ValueError(
+                f"action shape {actions.shape} does not match ({self.n_trains} trains, {self.n_groups} "
+                f"control groups of '{self.config.control_groups}')"
+            )
+        if not np.isfinite(actions).all():
+            bad = np.argwhere(~np.isfinite(actions))[0]
+            raise ValueError(f"action of train {bad[0]}, group {bad[1]} is {actions[tuple(bad)]}: actions must be finite")
+        clipped = np.minimum(np.maximum(actions, -1.0), 1.0)
+        return (0.5 * self.max_pressure_bar) * (clipped + 1.0)[:, self.group_of_axle]
+
+    def advance(self, actions: np.ndarray) -> None:
+        """One control step: set the commands, run the physics substeps, update the measures."""
+        self.pressure.set_command(self.commands_bar(actions))
+        sim = self.sim
+        speed_before = sim.train[SPEED].copy()
+        for _ in range(self.substeps):
+            sim.step()
+        # What a brake control unit derives from its speed sensor: the mean deceleration of the
+        # control step. A train that stopped inside the step decelerated over part of it only.
+        self.previous_deceleration_mps2 = self.deceleration_mps2
+        elapsed = np.where(np.isnan(sim.stop_time_s), self.control_step_s, 0.0)
+        stopped_now = ~np.isnan(sim.stop_time_s) & (speed_before > 0)
+        if stopped_now.any():
+            elapsed[stopped_now] = np.maximum(
+                sim.stop_time_s[stopped_now] - (sim.time_s - self.control_step_s), 1e-9
+            )
+        self.deceleration_mps2 = np.divide(
+            speed_before - sim.train[SPEED], elapsed, out=np.zeros(self.n_trains), where=elapsed > 0
+        )
+        jerk = np.abs(self.deceleration_mps2 - self.previous_deceleration_mps2) / self.control_step_s
+        episodes = self.episodes
+        episodes.step += 1
+        first = episodes.step == 1  # the first step's change from rest is the brake's onset, not jerk
+        np.maximum(episodes.peak_jerk_mps3, np.where(first, 0.0, jerk), out=episodes.peak_jerk_mps3)
+        hottest = sim.disc[T_FRIC].reshape(-1, self.n_trains).max(axis=0) - KELVIN
+        np.maximum(episodes.peak_friction_temperature_C, hottest, out=episodes.peak_friction_temperature_C)
+        self.jerk_mps3 = np.where(first, 0.0, jerk)
+
+    # -------------------------------------------------------------------------------------------
+    @property
+    def speed_mps(self) -> np.ndarray:
+        return self.sim.train[SPEED]
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return self.sim.train[POSITION]
+
+    @property
+    def standstill(self) -> np.ndarray:
+        return ~self.sim.moving
+
+    @property
+    def time_s(self) -> np.ndarray:
+        return self.episodes.step * self.control_step_s
+
+    def friction_temperature_C(self) -> np.ndarray:
+        """(N, discs), the friction-surface temperature T_fric."""
+        return self.sim.to_external(self.sim.disc[T_FRIC]) - KELVIN
+
+    def measurements(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """The sensor channels with noise: speed, deceleration, cylinder pressures (N, axles) and
+        the observed disc temperatures (N, observed discs)."""
+        noise = self.config.sensor_noise
+        n = self.n_trains
+        temperatures = self.friction_temperature_C()[:, self.observed_discs]
+        pressure = self.pressure.pressure_bar
+        # One draw per channel in a fixed order, always (zero noise included), so a seed's random
+        # stream does not depend on the noise settings.
+        draws = rng.standard_normal((n, 2 + pressure.shape[1] + temperatures.shape[1] + 1))
+        a = pressure.shape[1]
+        return {
+            "speed_mps": self.speed_mps + noise.speed_mps * draws[:, 0],
+            "decel_mps2": self.deceleration_mps2 + noise.decel_mps2 * draws[:, 1],
+            "pressure_bar": pressure + noise.pressure_bar * draws[:, 2 : 2 + a],
+            "temperature_C": temperatures + noise.temperature_C * draws[:, 2 + a : -1],
+            "distance_noise_m": noise.distance_m * draws[:, -1],
+        }
+
+    def physical_state(self) -> dict[str, np.ndarray]:
+        """The true state, for analysis (``info``): per-disc mu and temperatures, position, ..."""
+        sim = self.sim
+        return {
+            "time_s": self.time_s.astype(float),
+            "speed_mps": sim.train[SPEED].copy(),
+            "position_m": sim.train[POSITION].copy(),
+            "deceleration_mps2": self.deceleration_mps2.copy(),
+            "cylinder_pressure_bar": self.pressure.pressure_bar.copy(),
+            "command_bar": self.pressure.command_bar.copy(),
+            "mu": sim.to_external(sim.disc[MU]),
+            "friction_temperature_C": sim.to_external(sim.disc[T_FRIC]) - KELVIN,
+            "disc_temperature_C": sim.to_external(sim.disc[T_DISC]) - KELVIN,
+            "mass_kg": self.episodes.mass_kg.copy(),
+        }

@@ -1,0 +1,235 @@
+"""What each environment asks of the train: its episode draws, extra observations, reward terms
+and termination, vectorised over the fleet's N trains.
+
+A task sees the :class:`~brakegym.envs.core.TrainFleet` after each control step and returns named
+reward terms (summed into the reward and reported in ``info["reward_terms"]``), which trains
+ended (``terminated``) and which of those succeeded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from .config import BrakeEnvConfig, DecelTrackingConfig, EmergencyStopConfig, StationStopConfig
+from .core import TrainFleet, _as_batch
+
+# Above this the "deceleration still needed" of a station stop is out of reach of the brake
+# anyway; capping it keeps the tracking term bounded when the train is at or past the mark.
+MAX_REQUIRED_DECELERATION_MPS2 = 3.0
+
+
+@dataclass
+class Outcome:
+    """The task's verdict after a control step, arrays of length N."""
+
+    reward_terms: dict[str, np.ndarray]
+    terminated: np.ndarray
+    success: np.ndarray  # meaningful where terminated
+
+
+class BrakeTask:
+    """Base class: a task draws its episode parameters, adds observation columns and judges."""
+
+    config_name: ClassVar[str]
+    #: names and (low, high) bounds of the task's observation columns, after the common ones
+    extra_observations: ClassVar[tuple[tuple[str, float, float], ...]] = ()
+    #: reset options the task accepts besides the fleet's
+    options: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, config: BrakeEnvConfig, fleet: TrainFleet):
+        self.config = config
+        self.fleet = fleet
+        self.n = fleet.n_trains
+
+    def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        """Draw this task's episode parameters for trains ``index`` (after the fleet restarted)."""
+
+    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The extra observation columns (N, len(extra_observations))."""
+        return np.zeros((self.n, 0))
+
+    def judge(self) -> Outcome:
+        raise NotImplementedError
+
+    def episode_info(self) -> dict[str, np.ndarray]:
+        """Task quantities for ``info`` (per train)."""
+        return {}
+
+    def _jerk_term(self) -> np.ndarray:
+        return -self.config.reward.jerk_per_mps3 * self.fleet.jerk_mps3
+
+
+class StationStop(BrakeTask):
+    config_name = "station_stop"
+    # The required deceleration is a function of the two measured channels before it, given so
+    # that a learning controller need not discover v^2 / 2s itself.
+    extra_observations = (("distance_to_go_m", -1000.0, 5000.0), ("required_deceleration_mps2", 0.0, 3.0))
+    options = ("distance_to_mark_m",)
+    config: StationStopConfig
+
+    def __init__(self, config: StationStopConfig, fleet: TrainFleet):
+        super().__init__(config, fleet)
+        self.mark_m = np.zeros(self.n)
+        self.overran = np.zeros(self.n, dtype=bool)
+
+    def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        config = self.config
+        required = rng.uniform(config.required_deceleration_mps2.low, config.required_deceleration_mps2.high, len(index))
+        speed = self.fleet.episodes.initial_speed_mps[index]
+        mark = speed**2 / (2.0 * required) + speed * config.response_allowance_s
+        if "distance_to_mark_m" in options:
+            mark = _as_batch(options["distance_to_mark_m"], len(index), "distance_to_mark_m")
+            if np.any(~(mark > 0)):
+                raise ValueError(f"reset option 'distance_to_mark_m' = {options['distance_to_mark_m']}: must be positive")
+        self.mark_m[index] = mark
+        self.overran[index] = False
+
+    def distance_to_go_m(self) -> np.ndarray:
+        return self.mark_m - self.fleet.position_m
+
+    def required_deceleration_mps2(self) -> np.ndarray:
+        """v^2 / (2 distance to go): the constant deceleration that would stop on the mark."""
+        to_go = self.distance_to_go_m()
+        speed = self.fleet.speed_mps
+        needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, np.inf), where=to_go > 0)
+        return np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2)
+
+    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
+        to_go = self.distance_to_go_m() + measured["distance_noise_m"]
+        speed = np.maximum(measured["speed_mps"], 0.0)
+        needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, MAX_REQUIRED_DECELERATION_MPS2), where=to_go > 0)
+        return np.stack([to_go, np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2)], axis=1)
+
+    def stop_error_m(self) -> np.ndarray:
+        """Position minus mark: positive past the mark."""
+        return self.fleet.position_m - self.mark_m
+
+    def judge(self) -> Outcome:
+        config, fleet = self.config, self.fleet
+        weights = config.reward
+        error = self.stop_error_m()
+        self.overran |= ~fleet.standstill & (error > config.overrun_limit_m)
+        terminated = fleet.standstill | self.overran
+        success = fleet.standstill & ~self.overran & (np.abs(error) <= config.success_tolerance_m)
+        # Tracking the deceleration still needed, rather than rewarding only the final error,
+        # gives a learning signal on every step and favours a steady, comfortable braking curve.
+        tracking_error = np.abs(fleet.deceleration_mps2 - self.required_deceleration_mps2())
+        tracking = np.where(fleet.standstill, 0.0, -weights.tracking_per_mps2_s * tracking_error * fleet.control_step_s)
+        terminal_error = np.minimum(np.abs(error), 50.0)
+        accuracy = np.where(
+            terminated, weights.stop_success * success - weights.stop_error_per_m * terminal_error, 0.0
+        )
+        return Outcome({"tracking": tracking, "jerk": self._jerk_term(), "stop_accuracy": accuracy}, terminated, success)
+
+    def episode_info(self) -> dict[str, np.ndarray]:
+        return {
+            "distance_to_go_m": self.distance_to_go_m(),
+            "stop_error_m": self.stop_error_m(),
+            "mark_m": self.mark_m.copy(),
+            "overran": self.overran.copy(),
+        }
+
+
+class DecelTracking(BrakeTask):
+    config_name = "decel_tracking"
+    extra_observations = (("demand_mps2", 0.0, 5.0),)
+    options = ("demand_mps2", "demand_hold_s")
+    config: DecelTrackingConfig
+
+    def __init__(self, config: DecelTrackingConfig, fleet: TrainFleet):
+        super().__init__(config, fleet)
+        # Enough segments to cover the longest episode with the shortest holds.
+        self.n_segments = int(np.ceil(config.max_episode_time_s / config.demand_hold_s.low)) + 1
+        self.switch_time_s = np.zeros((self.n, self.n_segments))
+        self.level_mps2 = np.zeros((self.n, self.n_segments))
+        self.demand_in_last_step = np.zeros(self.n)
+        self.absolute_error_integral = np.zeros(self.n)
+
+    def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        config, n = self.config, len(index)
+        levels = np.asarray(config.demand_levels_mps2)[rng.integers(0, len(config.demand_levels_mps2), (n, self.n_segments))]
+        holds = rng.uniform(config.demand_hold_s.low, config.demand_hold_s.high, (n, self.n_segments))
+        if "demand_mps2" in options:
+            given = np.atleast_1d(np.asarray(options["demand_mps2"], dtype=float))
+            if given.ndim != 1 or len(given) > self.n_segments or np.any(~(given > 0)):
+                raise ValueError(
+                    f"reset option 'demand_mps2' = {options['demand_mps2']}: need 1..{self.n_segments} positive levels"
+                )
+            levels[:, : len(given)] = given
+            levels[:, len(given) :] = given[-1]  # the last level holds to the end
+        if "demand_hold_s" in options:
+            hold = np.atleast_1d(np.asarray(options["demand_hold_s"], dtype=float))
+            if np.any(~(hold > 0)) or hold.ndim != 1 or len(hold) > self.n_segments:
+                raise ValueError(f"reset option 'demand_hold_s' = {options['demand_hold_s']}: need positive hold times")
+            holds[:, : len(hold)] = hold
+            holds[:, len(hold) :] = hold[-1]
+        starts = config.first_demand_time_s + np.concatenate([np.zeros((n, 1)), np.cumsum(holds, axis=1)[:, :-1]], axis=1)
+        self.switch_time_s[index] = starts
+        self.level_mps2[index] = levels
+        self.demand_in_last_step[index] = 0.0
+        self.absolute_error_integral[index] = 0.0
+
+    def demand_mps2(self, time_s: np.ndarray) -> np.ndarray:
+        """The demanded deceleration at ``time_s`` (per train): zero before the first step."""
+        segment = (self.switch_time_s <= time_s[:, None] + 1e-9).sum(axis=1) - 1
+        level = self.level_mps2[np.arange(self.n), np.maximum(segment, 0)]
+        return np.where(segment >= 0, level, 0.0)
+
+    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
+        return self.demand_mps2(self.fleet.time_s)[:, None]
+
+    def judge(self) -> Outcome:
+        fleet = self.fleet
+        # The demand that held during the step just taken (the one observed before it).
+        demand = self.demand_mps2(fleet.time_s - fleet.control_step_s)
+        error = np.abs(fleet.deceleration_mps2 - demand)
+        moving_part = ~fleet.standstill
+        self.absolute_error_integral += np.where(moving_part, error * fleet.control_step_s, 0.0)
+        self.demand_in_last_step = demand
+        tracking = np.where(moving_part, -self.config.reward.tracking_per_mps2_s * error * fleet.control_step_s, 0.0)
+        terminated = fleet.standstill.copy()
+        return Outcome({"tracking": tracking, "jerk": self._jerk_term()}, terminated, terminated.copy())
+
+    def episode_info(self) -> dict[str, np.ndarray]:
+        time_s = np.maximum(self.fleet.time_s, self.fleet.control_step_s)
+        return {
+            "demand_mps2": self.demand_in_last_step.copy(),
+            "mean_abs_tracking_error_mps2": self.absolute_error_integral / time_s,
+        }
+
+
+class EmergencyStop(BrakeTask):
+    config_name = "emergency_stop"
+    config: EmergencyStopConfig
+
+    def __init__(self, config: EmergencyStopConfig, fleet: TrainFleet):
+        super().__init__(config, fleet)
+        self.previous_position_m = np.zeros(self.n)
+        self.overheated = np.zeros(self.n, dtype=bool)
+
+    def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        self.previous_position_m[index] = 0.0
+        self.overheated[index] = False
+
+    def judge(self) -> Outcome:
+        config, fleet = self.config, self.fleet
+        hottest = fleet.friction_temperature_C().max(axis=1)
+        self.overheated |= hottest > config.disc_temperature_limit_C
+        travelled = fleet.position_m - self.previous_position_m
+        self.previous_position_m = fleet.position_m.copy()
+        terminated = fleet.standstill | self.overheated
+        success = fleet.standstill & ~self.overheated
+        terms = {
+            "distance": -config.reward.distance_per_km * travelled / 1000.0,
+            "overheat": np.where(self.overheated, -config.reward.overheat, 0.0),
+        }
+        return Outcome(terms, terminated, success)
+
+    def episode_info(self) -> dict[str, np.ndarray]:
+        return {"braking_distance_m": self.fleet.position_m.copy(), "overheated": self.overheated.copy()}
+
+
+TASKS: dict[str, type[BrakeTask]] = {task.config_name: task for task in (StationStop, DecelTracking, EmergencyStop)}

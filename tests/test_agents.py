@@ -1,0 +1,87 @@
+"""Baseline controllers and the stress harness: what a user relies on when comparing controllers."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from agents.pid import PIDController, load_pid_config
+from brakegym.cli import main
+from brakegym.config import ConfigError
+from brakegym.stress import report, run_stress, table
+
+
+def _pid(env):
+    return PIDController(env.config, env.observation_names)
+
+
+def test_pid_station_stop_meets_the_accuracy_target():
+    """Issue target: 99 % of stops within 0.5 m of the mark under MCS-75/25."""
+    result = run_stress("StationStop-v0", _pid, "pid", setup="mcs-75-25", episodes=200, seed=5, batch_size=200)
+    assert result.success.mean() >= 0.99
+    assert np.percentile(np.abs(result.metric), 99) < 0.5
+    assert not result.ended_by_time_limit.any()
+
+
+def test_pid_tracks_deceleration_demand():
+    result = run_stress("DecelTracking-v0", _pid, "pid", episodes=50, seed=1, batch_size=50)
+    # Mean |deceleration - demand| over each stop, including the brake's 1 s build-up per step.
+    assert result.metric.mean() < 0.1
+
+
+def test_pid_emergency_stop_respects_the_temperature_limit():
+    result = run_stress("EmergencyStop-v0", _pid, "pid", episodes=50, seed=2, batch_size=50)
+    assert result.success.all()
+    assert result.peak_disc_temperature_C.max() < 600.0
+
+
+def test_stress_is_deterministic_and_reports_bands():
+    first = run_stress("StationStop-v0", _pid, "pid", episodes=40, seed=9, batch_size=20, keep_worst=2)
+    second = run_stress("StationStop-v0", _pid, "pid", episodes=40, seed=9, batch_size=20, keep_worst=2)
+    np.testing.assert_array_equal(first.metric, second.metric)
+    np.testing.assert_array_equal(first.peak_jerk_mps3, second.peak_jerk_mps3)
+    rep = report(first, [40, 60, 80, 100])
+    assert sum(band["episodes"] for band in rep["bands"]) == 40
+    assert len(first.worst) == 2 and first.worst[0]["trace"]["speed_mps"][0] > 0
+    assert "| pid | all | 40 |" in table([rep])
+
+
+def test_pid_gains_config_is_validated(tmp_path):
+    bad = tmp_path / "pid.yaml"
+    bad.write_text((load_pid_config().model_dump_json()).replace('"proportional_gain":0.6', '"proportional_gain":-1'))
+    with pytest.raises(ConfigError, match="proportional_gain"):
+        load_pid_config(bad)
+
+
+def test_cli_stress_writes_table_figure_and_json(tmp_path, capsys):
+    out = tmp_path / "stress"
+    code = main(["stress", "--agent", "pid", "--episodes", "30", "--batch", "30", "--out", str(out), "--json", str(tmp_path / "s.json")])
+    assert code == 0
+    payload = json.loads((tmp_path / "s.json").read_text())
+    overall = payload["agents"][0]["overall"]
+    assert overall["episodes"] == 30 and 0.0 <= overall["success_rate"] <= 1.0
+    assert {"stop_error_m_abs_p95", "stop_error_m_abs_p99", "stop_error_m_abs_worst", "peak_jerk_mps3_max"} <= set(overall)
+    assert (out / "stress_comparison.png").stat().st_size > 10_000
+    assert json.loads((out / "worst_pid.json").read_text())
+    assert "| pid | all | 30 |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["stress", "--agent", "nonsense", "--episodes", "5"], "not pid, ppo, sac or an agent folder"),
+        (["stress", "--agent", "pid", "--env", "Nope-v0"], "unknown environment"),
+        (["stress", "--agent", "pid", "--bands", "80,40"], "increasing"),
+        (["evaluate", "--episodes", "0"], "at least 1"),
+        (["evaluate", "--setup", "mcs-50"], "unknown setup"),
+    ],
+)
+def test_cli_agent_commands_refuse_bad_arguments(argv, message, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as exit_:  # argparse rejects the argument itself
+        code = exit_.code
+    assert code == 2
+    assert message in capsys.readouterr().err

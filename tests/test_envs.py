@@ -1,0 +1,323 @@
+"""The Gymnasium environments: API conformance, determinism, input errors, batching, physics."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import brakegym  # noqa: F401  (registers the environments)
+from brakegym.config import ConfigError
+from brakegym.envs import DecelTrackingVectorEnv, StationStopEnv, StationStopVectorEnv
+
+ENV_IDS = ["brakegym/StationStop-v0", "brakegym/DecelTracking-v0", "brakegym/EmergencyStop-v0"]
+QUIET = {"sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_gymnasium_env_checker_passes_without_warnings(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(env_id).unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=True)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_env_checker_passes_without_warnings(env_id):
+    from stable_baselines3.common.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(env_id).unwrapped, warn=True)
+
+
+def test_make_with_module_prefix_works_without_import():
+    code = (
+        "import gymnasium as gym, warnings; warnings.simplefilter('error');"
+        "env = gym.make('brakegym:brakegym/StationStop-v0'); env.reset(seed=0); print('ok')"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
+def test_registration_is_idempotent():
+    import importlib
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # gymnasium warns when an id is registered twice
+        importlib.reload(brakegym)
+    assert all(env_id in gym.registry for env_id in ENV_IDS)
+
+
+def _episode(env, seed, steps=60, action=0.3):
+    observation, _ = env.reset(seed=seed)
+    rows = [observation]
+    for _ in range(steps):
+        observation, reward, terminated, truncated, info = env.step(np.full(env.action_space.shape, action, np.float32))
+        rows.append(np.append(observation, reward))
+        if terminated or truncated:
+            break
+    return rows
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_episode_bit_for_bit(env_id):
+    first = _episode(gym.make(env_id), seed=7)
+    second = _episode(gym.make(env_id), seed=7)
+    other = _episode(gym.make(env_id), seed=8)
+    assert len(first) == len(second)
+    assert all(np.array_equal(a, b) for a, b in zip(first, second))
+    assert not np.array_equal(first[0], other[0])
+
+
+def test_invalid_actions_raise_clear_errors():
+    env = StationStopEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([0.1, np.nan, 0.1, 0.1], dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(3, dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros((1, 4), dtype=np.float32))
+
+
+def test_out_of_range_actions_are_clipped_to_the_space():
+    """Documented behaviour: values beyond [-1, 1] act like the nearest bound."""
+    results = []
+    for action in (1.0, 7.5):
+        env = StationStopEnv()
+        env.reset(seed=3)
+        for _ in range(20):
+            observation, *_ = env.step(np.full(4, action, np.float32))
+        results.append(observation)
+    np.testing.assert_array_equal(results[0], results[1])
+    env = StationStopEnv()
+    env.reset(seed=3)
+    _, _, _, _, info = env.step(np.full(4, -3.0, np.float32))
+    assert np.all(info["command_bar"] == 0.0)
+
+
+def test_full_action_commands_the_vehicle_maximum_pressure():
+    env = StationStopEnv(config={"control_groups": "axle"})
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.ones(8, np.float32))
+    np.testing.assert_allclose(info["command_bar"], 4.5)
+    for _ in range(60):
+        _, _, _, _, info = env.step(np.ones(8, np.float32))
+    # EP: 0.2 s dead time, 0.8 s lag: after 6.1 s the cylinders are within 0.1 % of the command.
+    np.testing.assert_allclose(info["cylinder_pressure_bar"], 4.5, rtol=2e-3)
+
+
+@pytest.mark.parametrize("vector_class", [StationStopVectorEnv, DecelTrackingVectorEnv])
+def test_random_actions_never_produce_nan(vector_class):
+    """10^5 random-action train-steps, with autoresets, stay finite and inside the space."""
+    env = vector_class(num_envs=250)
+    observation, _ = env.reset(seed=11)
+    rng = np.random.default_rng(0)
+    for _ in range(400):
+        action = rng.uniform(-1.2, 1.2, env.action_space.shape).astype(np.float32)
+        observation, reward, terminated, truncated, info = env.step(action)
+        assert np.isfinite(observation).all() and np.isfinite(reward).all()
+        assert env.observation_space.contains(observation)
+        assert np.isfinite(info["mu"]).all()
+
+
+def test_vector_env_matches_single_env_physics():
+    """Without noise or scatter, a batch of trains and one train see the same physics."""
+    options = {"initial_speed_kmh": 80.0, "load": "normal", "setup": "ds", "initial_disc_temperature_C": 60.0, "distance_to_mark_m": 400.0}
+    single = StationStopEnv(config=QUIET)
+    single.reset(seed=0, options=options)
+    vector = StationStopVectorEnv(num_envs=5, config=QUIET)
+    vector.reset(seed=1, options=options)
+    for _ in range(100):
+        single_observation, *_ = single.step(np.full(4, 0.1, np.float32))
+        vector_observation, *_ = vector.step(np.full((5, 4), 0.1, np.float32))
+    for row in vector_observation:
+        np.testing.assert_allclose(row, single_observation, rtol=1e-6)
+
+
+def test_make_vec_uses_the_native_vector_env():
+    env = gym.make_vec("brakegym/StationStop-v0", num_envs=4)
+    assert isinstance(env.unwrapped, StationStopVectorEnv)
+    observation, _ = env.reset(seed=0)
+    assert observation.shape == (4, env.single_observation_space.shape[0])
+
+
+def test_autoreset_same_step_reports_final_observation():
+    env = StationStopVectorEnv(num_envs=3, config=QUIET)
+    env.reset(seed=0, options={"initial_speed_kmh": 20.0, "distance_to_mark_m": 50.0})
+    for _ in range(1000):
+        observation, _, terminated, truncated, info = env.step(np.ones((3, 4), np.float32))
+        if (terminated | truncated).any():
+            break
+    ended = terminated | truncated
+    assert ended.all()  # identical trains end together
+    assert info["_final_obs"].all()
+    assert np.all(info["final_obs"][:, 0] == 0.0)  # the ended episodes stand still
+    np.testing.assert_allclose(observation[:, 0], 20.0 / 3.6)  # the new ones start at speed
+
+
+def test_station_stop_success_and_reward_terms():
+    env = StationStopEnv(config=QUIET)
+    env.reset(seed=0, options={"initial_speed_kmh": 30.0, "distance_to_mark_m": 60.0})
+    total = 0.0
+    for _ in range(600):
+        observation, reward, terminated, truncated, info = env.step(np.full(4, 0.6, np.float32))
+        total += reward
+        assert reward == pytest.approx(sum(info["reward_terms"].values()))
+        if terminated or truncated:
+            break
+    assert terminated
+    # 3.6 bar from 30 km/h stops well short of 60 m: not a success.
+    assert info["stop_error_m"] < -0.5 and not info["is_success"]
+    assert info["reward_terms"]["stop_accuracy"] == pytest.approx(-abs(info["stop_error_m"]))
+
+
+def test_station_stop_overrun_ends_the_episode():
+    env = StationStopEnv(config=QUIET)
+    env.reset(seed=0, options={"initial_speed_kmh": 60.0, "distance_to_mark_m": 50.0})
+    for _ in range(600):
+        _, _, terminated, truncated, info = env.step(np.full(4, -1.0, np.float32))
+        if terminated or truncated:
+            break
+    assert terminated and info["overran"] and not info["is_success"]
+    assert 2.0 < info["stop_error_m"] < 2.0 + 60 / 3.6 * 0.1 + 1e-9
+    assert info["speed_mps"] > 0
+
+
+def test_decel_tracking_follows_given_demand():
+    env = gym.make("brakegym/DecelTracking-v0", config=QUIET).unwrapped
+    observation, _ = env.reset(seed=0, options={"demand_mps2": [0.5, 0.8], "demand_hold_s": [5.0, 100.0]})
+    names = env.observation_names
+    demand = [observation[names.index("demand_mps2")]]
+    for _ in range(80):
+        observation, *_ = env.step(np.zeros(4, np.float32))
+        demand.append(observation[names.index("demand_mps2")])
+    # 0 before 1 s, 0.5 from 1 s, 0.8 from 6 s (control steps of 0.1 s)
+    assert demand[5] == 0.0 and demand[10] == pytest.approx(0.5) and demand[60] == pytest.approx(0.8)
+
+
+def test_emergency_stop_overheat_terminates():
+    env = gym.make("brakegym/EmergencyStop-v0", config={**QUIET, "disc_temperature_limit_C": 200.0}).unwrapped
+    env.reset(seed=0, options={"initial_speed_kmh": 160.0, "initial_disc_temperature_C": 150.0})
+    for _ in range(2000):
+        _, reward, terminated, truncated, info = env.step(np.ones(4, np.float32))
+        if terminated or truncated:
+            break
+    assert terminated and info["overheated"] and not info["is_success"]
+    assert max(info["friction_temperature_C"]) > 200.0
+    assert info["reward_terms"]["overheat"] == -10.0
+
+
+def test_thermal_state_carries_over_between_episodes():
+    env = StationStopEnv(config={**QUIET, "carry_over_thermal_state": True})
+    env.reset(seed=0, options={"initial_speed_kmh": 100.0, "distance_to_mark_m": 600.0})
+    info = {}
+    for _ in range(2000):
+        _, _, terminated, truncated, info = env.step(np.ones(4, np.float32))
+        if terminated or truncated:
+            break
+    _, new_info = env.reset()
+    np.testing.assert_array_equal(new_info["friction_temperature_C"], info["friction_temperature_C"])
+    np.testing.assert_array_equal(new_info["disc_temperature_C"], info["disc_temperature_C"])
+    assert max(new_info["friction_temperature_C"]) > 100.0
+
+
+def test_only_the_instrumented_disc_can_be_observed():
+    env = StationStopEnv(config={"observed_temperatures": "instrumented", "instrumented_disc": 5})
+    assert [n for n in env.observation_names if n.startswith("temperature")] == ["temperature_C_5"]
+
+
+def test_bad_config_and_options_are_refused_with_names():
+    with pytest.raises(ConfigError, match="control_groups"):
+        StationStopEnv(config={"control_groups": "wagon"})
+    with pytest.raises(ConfigError, match="simulation_frequency_hz"):
+        StationStopEnv(config={"simulation_frequency_hz": 15})
+    with pytest.raises(ConfigError, match="no_such_field"):
+        StationStopEnv(config={"no_such_field": 1})
+    with pytest.raises(ConfigError, match="loads"):
+        StationStopEnv(config={"loads": ["crush"]})
+    env = StationStopEnv()
+    with pytest.raises(ValueError, match="unknown reset option"):
+        env.reset(seed=0, options={"initial_speed": 50})
+    with pytest.raises(ValueError, match="load"):
+        env.reset(seed=0, options={"load": "crush"})
+    with pytest.raises(RuntimeError, match="reset"):
+        StationStopEnv().step(np.zeros(4, np.float32))
+
+
+def test_render_modes():
+    env = StationStopEnv(render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.float32))
+    frame = env.render()
+    assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
+    env = StationStopEnv(render_mode="ansi")
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.float32))
+    assert "km/h" in env.render() and "to go" in env.render()
+
+
+def test_sb3_adapter_trains_ppo_on_the_batched_env():
+    import torch
+    from stable_baselines3 import PPO
+
+    from brakegym.envs.sb3 import SB3VecEnv
+
+    torch.set_num_threads(1)
+    venv = SB3VecEnv(StationStopVectorEnv(num_envs=8, config={"max_episode_time_s": 3.0}))
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=1024)
+    venv.reset()
+    _, _, dones, infos = venv.step(np.zeros((8, 4), np.float32))
+    for _ in range(40):
+        _, _, dones, infos = venv.step(np.zeros((8, 4), np.float32))
+        if dones.any():
+            break
+    ended = np.flatnonzero(dones)
+    assert len(ended) == 8  # the 3 s time limit ends every train together
+    assert infos[0]["TimeLimit.truncated"] and "terminal_observation" in infos[0]
+
+
+def test_reset_trains_equals_a_fresh_simulator():
+    """Restarting some trains of a running batch gives them exactly the run of a fresh batch."""
+    from brakegym import config as cfg
+    from brakegym.applications import train_plant
+    from brakegym.physics import BrakeCylinder
+    from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    plant = train_plant(vehicle)
+    rng = np.random.default_rng(4)
+
+    def conditions(n):
+        shape = (n, *plant.disc_shape)
+        return BatchConditions(
+            mass_kg=rng.uniform(1.2e5, 1.5e5, n), initial_speed_mps=rng.uniform(10, 40, n),
+            initial_mu=rng.uniform(0.33, 0.37, shape), power_coefficient_per_s=rng.uniform(0.003, 0.005, shape),
+            running_resistance_A_N=rng.uniform(1000, 4000, n), initial_friction_temperature_K=rng.uniform(300, 400, shape),
+            initial_disc_temperature_K=rng.uniform(300, 400, shape), ambient_temperature_K=np.full(n, 293.15),
+        )  # fmt: skip
+
+    cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", "EP"))
+    running = Simulator(plant, conditions(4), CommandedPressure([cylinder] * 4, 8, 0.05), step_s=0.05)
+    running.pressure.set_command(np.full((4, 8), 3.0))
+    for _ in range(30):
+        running.step()
+    restart = conditions(2)
+    running.reset_trains(np.array([1, 3]), restart)
+    running.pressure.reset_trains(np.array([1, 3]))
+    fresh = Simulator(plant, restart, CommandedPressure([cylinder] * 2, 8, 0.05), step_s=0.05)
+    for sim in (running, fresh):
+        sim.pressure.set_command(np.full((sim.n_trains, 8), 2.5))
+        for _ in range(40):
+            sim.step()
+    np.testing.assert_array_equal(running.disc[..., [1, 3]], fresh.disc)
+    np.testing.assert_array_equal(running.train[:, [1, 3]], fresh.train)
