@@ -292,8 +292,16 @@ def _clamp_of_tile(
             axle_clamp_N[axle * n_tile + t] = clamp_force_from_pressure_N(pressure, gain, threshold)
     coefficient, exponent = parameters[CLAMP_FORCE_COEFFICIENT_PER_S], parameters[CLAMP_FORCE_EXPONENT]
     reference = parameters[REFERENCE_CLAMP_FORCE_N]
+    clamped = False
     for index in range(n_axles * n_tile):
-        axle_clamp_term[index] = clamp_force_term_per_s(axle_clamp_N[index], coefficient, exponent, reference)
+        if axle_clamp_N[index] > 0.0:
+            clamped = True
+            break
+    for index in range(n_axles * n_tile):
+        # Released brakes (no clamp force anywhere in the tile) need no powers: the term is 0.
+        axle_clamp_term[index] = (
+            clamp_force_term_per_s(axle_clamp_N[index], coefficient, exponent, reference) if clamped else 0.0
+        )
     for t in range(n_tile):
         weighted_clamp_N[t] = 0.0
     for axle in range(n_axles):
@@ -417,27 +425,43 @@ def _rates_of_tile(
         d_friction_temperature, d_disc_temperature = temperature_rates_K_per_s(
             friction_W, surface_W, conduction_W, ventilation_W, friction_layer_capacity, disc_body_capacity
         )
-        mu_rate = friction_rate_per_s(
-            mu,
-            clamp,
-            v_fric,
-            friction_temperature,
-            clamp_term[slot],
-            power_coefficient[slot],
-            power_exponent,
-            decay_coefficient,
-            decay_exponent,
-            temperature_coefficient,
-            temperature_exponent,
-            reference_power,
-            reference_temperature,
-        )
-        disc_rates[stage, MU, slot] = select(friction_evolves(clamp, v_fric, min_sliding), mu_rate, 0.0)
         disc_rates[stage, T_FRIC, slot] = d_friction_temperature
         disc_rates[stage, T_DISC, slot] = d_disc_temperature
         disc_rates[stage, MU_DISTANCE, slot] = mu * speed_of_slot[slot]
         disc_rates[stage, FRICTION_HEAT, slot] = friction_W
         disc_rates[stage, COOLING_HEAT, slot] = surface_W + ventilation_W
+
+    # Eq. 4 in a loop of its own, skipped when no disc of the tile slides under clamp force
+    # (standing trains, released brakes): its three powers are most of the work of a stage.
+    evolving = False
+    for slot in range(n_slots):
+        if friction_evolves(clamp_N[slot], sliding_of_slot[slot], min_sliding):
+            evolving = True
+            break
+    if evolving:
+        for slot in range(n_slots):
+            mu = bounded_mu(disc[MU, slot], mu_min, mu_max)
+            clamp = clamp_N[slot]
+            v_fric = sliding_of_slot[slot]
+            mu_rate = friction_rate_per_s(
+                mu,
+                clamp,
+                v_fric,
+                disc[T_FRIC, slot],
+                clamp_term[slot],
+                power_coefficient[slot],
+                power_exponent,
+                decay_coefficient,
+                decay_exponent,
+                temperature_coefficient,
+                temperature_exponent,
+                reference_power,
+                reference_temperature,
+            )
+            disc_rates[stage, MU, slot] = select(friction_evolves(clamp, v_fric, min_sliding), mu_rate, 0.0)
+    else:
+        for slot in range(n_slots):
+            disc_rates[stage, MU, slot] = 0.0
 
     # Each train's discs summed in their order, apart from the loop above (a floating-point sum
     # inside it would not vectorize): deterministic.
