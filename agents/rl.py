@@ -177,25 +177,27 @@ def train(
     wall_s = time.monotonic() - started
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
-    (out / "training.json").write_text(
-        json.dumps(
-            {
-                "algo": algo,
-                "env": short_env_id(env_id),
-                "setup": setup,
-                "seed": seed,
-                "timesteps": int(model.num_timesteps),
-                "requested_timesteps": steps,
-                "time_budget_s": time_budget_s,
-                "wall_time_s": round(wall_s, 1),
-                "hyperparameters": hyper,
-                "env_config": env_config or {},
-                "machine": platform.platform(),
-                "command": f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed} --out {out}",
-            },
-            indent=2,
-        )
-    )
+    meta = {
+        "algo": algo,
+        "env": short_env_id(env_id),
+        "setup": setup,
+        "seed": seed,
+        "timesteps": int(model.num_timesteps),
+        "requested_timesteps": steps,
+        "time_budget_s": time_budget_s,
+        "wall_time_s": round(wall_s, 1),
+        "hyperparameters": hyper,
+        "env_config": env_config or {},
+        "machine": platform.platform(),
+        "command": f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed} --timesteps {steps} --out {out}",
+    }
+    (out / "training.json").write_text(json.dumps(meta, indent=2))
+    best = out / "best"
+    if (best / "best_model.zip").is_file():
+        # The evaluation callback's best checkpoint, made an agent folder of its own (the one to
+        # ship: chosen on evaluation trains, not on the stress test's).
+        (best / "best_model.zip").replace(best / "model.zip")
+        (best / "training.json").write_text(json.dumps({**meta, "checkpoint": "best by evaluation reward"}, indent=2))
     return out
 
 

@@ -85,3 +85,14 @@ def test_cli_agent_commands_refuse_bad_arguments(argv, message, capsys):
         code = exit_.code
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def test_shipped_ppo_policy_stops_trains_on_the_mark():
+    """The policy in agents/policies/ evaluates without training (README numbers come from
+    `brakegym stress --agent pid --agent ppo --episodes 1000 --seed 100`)."""
+    from brakegym.cli_agents import controller_factory
+
+    name, factory = controller_factory("ppo", "brakegym/StationStop-v0")
+    result = run_stress("StationStop-v0", factory, name, episodes=100, seed=100, batch_size=100)
+    assert result.success.mean() >= 0.95
+    assert np.median(np.abs(result.metric)) < 0.1

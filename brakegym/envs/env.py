@@ -147,15 +147,11 @@ class BrakeCore:
 
 
 def _train_info(info: Mapping[str, Any], i: int) -> dict[str, Any]:
-    """Train ``i``'s entries of a batched info dict, as scalars / per-disc arrays."""
-    single: dict[str, Any] = {}
-    for key, value in info.items():
-        if isinstance(value, dict):
-            single[key] = {name: float(array[i]) for name, array in value.items()}
-        elif np.ndim(value[i]) == 0:
-            single[key] = value[i].item()
-        else:
-            single[key] = value[i]
+    """Train ``i``'s entries of a batched info dict: numpy scalars (``np.float64`` is a float) and
+    per-disc rows."""
+    single = {key: value[i] for key, value in info.items() if not isinstance(value, dict)}
+    if "reward_terms" in info:
+        single["reward_terms"] = {name: float(array[i]) for name, array in info["reward_terms"].items()}
     return single
 
 
