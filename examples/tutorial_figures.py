@@ -2,7 +2,7 @@
 
     python examples/tutorial_figures.py fig1          # one figure
     python examples/tutorial_figures.py all           # every figure
-    python examples/tutorial_figures.py fig3 --out /tmp/figs
+    python examples/tutorial_figures.py fig3 --out out/figs
 
 Each function simulates what its figure shows, writes the PNG into the output folder (default
 docs/tutorial/), prints the numbers the tutorial quotes and returns them as a dict, so the text
