@@ -329,6 +329,15 @@ class Simulator:
         self._nominal_resistance_A_N = np.broadcast_to(
             np.asarray(self.nominal_running_resistance.A_N, dtype=float), (n,)
         ).copy()
+        for law, which in ((plant.running_resistance, "plant"), (self.nominal_running_resistance, "nominal")):
+            if np.ndim(law.B_N_per_mps) or np.ndim(law.C_N_per_mps2):
+                # The compiled kernels hold B and C as constants of the plant; only A varies per
+                # train (BatchConditions.running_resistance_A_N).
+                raise ValueError(
+                    f"{which} running resistance: B_N_per_mps and C_N_per_mps2 must be single values for "
+                    f"the whole batch, got arrays of shape {np.shape(law.B_N_per_mps)} / "
+                    f"{np.shape(law.C_N_per_mps2)}; simulate trains with other B or C in their own batch"
+                )
         self._parameters = kernel.plant_parameters(plant, self.nominal_running_resistance)
 
         self.disc = np.zeros((len(DISC_STATES), *disc_shape))

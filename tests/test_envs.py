@@ -321,3 +321,27 @@ def test_reset_trains_equals_a_fresh_simulator():
             sim.step()
     np.testing.assert_array_equal(running.disc[..., [1, 3]], fresh.disc)
     np.testing.assert_array_equal(running.train[:, [1, 3]], fresh.train)
+
+
+def test_per_train_resistance_B_and_C_are_refused_clearly():
+    """The compiled kernels take B and C per plant; an array must fail with a message, not a
+    numpy error from deep inside."""
+    import dataclasses
+
+    from brakegym import config as cfg
+    from brakegym.applications import train_plant
+    from brakegym.physics import BrakeCylinder, RunningResistance
+    from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
+
+    plant = train_plant(cfg.load("vehicles", "emu_8axle"))
+    plant = dataclasses.replace(plant, running_resistance=RunningResistance(A_N=2500.0, B_N_per_mps=np.array([30.0, 60.0]), C_N_per_mps2=5.0))
+    shape = (2, *plant.disc_shape)
+    conditions = BatchConditions(
+        mass_kg=np.full(2, 1.2e5), initial_speed_mps=np.full(2, 20.0), initial_mu=np.full(shape, 0.35),
+        power_coefficient_per_s=np.full(shape, 0.004), running_resistance_A_N=np.full(2, 2500.0),
+        initial_friction_temperature_K=np.full(shape, 300.0), initial_disc_temperature_K=np.full(shape, 300.0),
+        ambient_temperature_K=np.full(2, 293.15),
+    )  # fmt: skip
+    cylinder = BrakeCylinder(dead_time_s=0.2, time_constant_s=0.8)
+    with pytest.raises(ValueError, match="B_N_per_mps and C_N_per_mps2 must be single values"):
+        Simulator(plant, conditions, CommandedPressure([cylinder] * 2, 8, 0.1), step_s=0.1)
