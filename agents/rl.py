@@ -81,12 +81,7 @@ def _vec_env(env_id: str, n_envs: int, seed: int, setup: str, env_config: dict[s
 
     from brakegym.envs.sb3 import SB3VecEnv
 
-    vector = make_vector_env(env_id, n_envs, setup, env_config)
-    vector.autoreset = True
-    from gymnasium.vector import AutoresetMode
-
-    vector.metadata["autoreset_mode"] = AutoresetMode.SAME_STEP
-    venv = VecMonitor(SB3VecEnv(vector))
+    venv = VecMonitor(SB3VecEnv(make_vector_env(env_id, n_envs, setup, env_config, autoreset=True)))
     venv.seed(seed)
     return venv
 
@@ -104,21 +99,18 @@ def _save_normalizer_on_best(venv: Any, path: Path):
     return SaveNormalizer()
 
 
-class _TimeBudget:
+def _time_budget(budget_s: float):
     """Stops training once ``budget_s`` of wall-clock time has passed."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
-    def __new__(cls, budget_s: float):
-        from stable_baselines3.common.callbacks import BaseCallback
+    class TimeBudget(BaseCallback):
+        def _init_callback(self) -> None:
+            self.deadline = time.monotonic() + budget_s
 
-        class TimeBudget(BaseCallback):
-            def __init__(self) -> None:
-                super().__init__()
-                self.deadline = time.monotonic() + budget_s
+        def _on_step(self) -> bool:
+            return time.monotonic() < self.deadline
 
-            def _on_step(self) -> bool:
-                return time.monotonic() < self.deadline
-
-        return TimeBudget()
+    return TimeBudget()
 
 
 def train(
@@ -171,7 +163,7 @@ def train(
         )
     ]
     if time_budget_s is not None:
-        callbacks.append(_TimeBudget(time_budget_s))
+        callbacks.append(_time_budget(time_budget_s))
     started = time.monotonic()
     model.learn(total_timesteps=steps, callback=CallbackList(callbacks), progress_bar=progress_bar)
     wall_s = time.monotonic() - started
@@ -219,20 +211,13 @@ class PolicyController:
         import pickle
 
         with open(folder / "vecnormalize.pkl", "rb") as handle:
-            normalizer = pickle.load(handle)
-        self.obs_rms = normalizer.obs_rms if normalizer.norm_obs else None
-        self.clip_obs = normalizer.clip_obs
-        self.epsilon = normalizer.epsilon
+            self.normalizer = pickle.load(handle)  # VecNormalize without its env: the statistics
         self.name = f"{self.meta['algo']}:{folder.name}"
 
     def reset(self, info: dict[str, Any]) -> None:
         """The policy keeps no state between steps."""
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        observation = np.asarray(observation, dtype=np.float32)
-        if self.obs_rms is not None:
-            observation = np.clip(
-                (observation - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs
-            ).astype(np.float32)
+        observation = self.normalizer.normalize_obs(np.asarray(observation, dtype=np.float32))
         actions, _ = self.model.predict(observation, deterministic=True)
         return actions

@@ -18,14 +18,14 @@ from pathlib import Path
 from typing import Any, Callable
 
 from . import cli
-from .envs import ENVIRONMENTS
+from .envs import ENVIRONMENTS, full_env_id
 
 
 def _env_id(text: str) -> str:
-    full = text if text.startswith("brakegym/") else f"brakegym/{text}"
-    if full not in ENVIRONMENTS:
-        raise argparse.ArgumentTypeError(f"unknown environment {text!r}; known: {[e.split('/')[1] for e in ENVIRONMENTS]}")
-    return full
+    try:
+        return full_env_id(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _bands(text: str) -> list[float]:

@@ -16,7 +16,7 @@ from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from .envs import ENVIRONMENTS, BrakeVectorEnv
+from .envs import ENVIRONMENTS, BrakeVectorEnv, full_env_id
 
 # The per-episode quantity judged in each task, and its unit.
 TASK_METRIC = {
@@ -50,18 +50,13 @@ class StressResult:
     ended_by_time_limit: np.ndarray
     worst: list[dict[str, Any]]  # the worst episodes: conditions and traces
 
-    @property
-    def judged(self) -> np.ndarray:
-        """Magnitude judged: |stop error|, tracking error, braking distance."""
-        return np.abs(self.metric)
 
-
-def make_vector_env(env_id: str, episodes: int, setup: str, config: dict[str, Any] | None = None) -> BrakeVectorEnv:
-    full_id = env_id if env_id.startswith("brakegym/") else f"brakegym/{env_id}"
-    if full_id not in ENVIRONMENTS:
-        raise ValueError(f"unknown environment {env_id!r}; known: {sorted(ENVIRONMENTS)}")
-    vector_class = ENVIRONMENTS[full_id][1]
-    return vector_class(num_envs=episodes, config={**(config or {}), "setup": setup}, autoreset=False)
+def make_vector_env(
+    env_id: str, n_trains: int, setup: str, config: dict[str, Any] | None = None, autoreset: bool = False
+) -> BrakeVectorEnv:
+    """The batched environment ``env_id`` with ``setup`` as its friction scatter."""
+    vector_class = ENVIRONMENTS[full_env_id(env_id)][1]
+    return vector_class(num_envs=n_trains, config={**(config or {}), "setup": setup}, autoreset=autoreset)
 
 
 def run_stress(
@@ -95,17 +90,18 @@ def run_stress(
         vehicle_loads = env.core.fleet.vehicle_loads
         loads = np.array([vehicle_loads[i] for i in env.core.fleet.episodes.load_index])
         initial_speed = info["initial_speed_mps"] * 3.6
-        final: dict[str, np.ndarray] = {}
+        # What each train's episode ended with, kept from the step it ended.
+        ended_with = (metric_name, "peak_jerk_mps3", "peak_friction_temperature_C")
+        final = {key: np.zeros_like(info[key]) for key in ended_with}
+        final["is_success"] = np.zeros(n, dtype=bool)
+        final["time_limit"] = np.zeros(n, dtype=bool)
         ended = np.zeros(n, dtype=bool)
         traces: list[np.ndarray] = []
         trace_end = np.zeros(n, dtype=np.int64)
         while not ended.all():
             observation, _, terminated, truncated, info = env.step(controller.act(observation))
             newly = (terminated | truncated) & ~ended
-            if not final:
-                final = {key: np.zeros_like(info[key]) for key in ("is_success", metric_name, "peak_jerk_mps3", "peak_friction_temperature_C")}
-                final["time_limit"] = np.zeros(n, dtype=bool)
-            for key in ("is_success", metric_name, "peak_jerk_mps3", "peak_friction_temperature_C"):
+            for key in (*ended_with, "is_success"):
                 final[key][newly] = info[key][newly]
             final["time_limit"][newly] = truncated[newly] & ~terminated[newly]
             traces.append(
@@ -123,8 +119,7 @@ def run_stress(
             trace_end[newly] = len(traces)
             ended |= newly
         trace_array = np.stack(traces)  # (steps, channels, n)
-        judged = np.abs(final[metric_name]) if metric_name != "braking_distance_m" else final[metric_name]
-        order = np.lexsort((-judged, final["is_success"]))  # failures first, then the largest error
+        order = np.lexsort((-np.abs(final[metric_name]), final["is_success"]))  # failures first, then the largest error
         for i in order[:keep_worst]:
             worst.append(
                 {
@@ -141,7 +136,7 @@ def run_stress(
             )
         columns["speed"].append(initial_speed)
         columns["load"].append(loads)
-        columns["success"].append(final["is_success"].astype(bool))
+        columns["success"].append(final["is_success"])
         columns["metric"].append(final[metric_name])
         columns["jerk"].append(final["peak_jerk_mps3"])
         columns["temperature"].append(final["peak_friction_temperature_C"])

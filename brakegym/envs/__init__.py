@@ -44,10 +44,19 @@ ENVIRONMENTS = {
 }
 
 
+def full_env_id(env_id: str) -> str:
+    """``StationStop-v0`` or ``brakegym/StationStop-v0`` as the registered id; unknown ids raise."""
+    full = env_id if env_id.startswith("brakegym/") else f"brakegym/{env_id}"
+    if full not in ENVIRONMENTS:
+        raise ValueError(f"unknown environment {env_id!r}; known: {[e.split('/')[1] for e in ENVIRONMENTS]}")
+    return full
+
+
 __all__ = [
     "BrakeCore",
     "BrakeEnv",
     "BrakeVectorEnv",
     "ENVIRONMENTS",
     "environment_config",
+    "full_env_id",
 ] + [cls.__name__ for pair in ENVIRONMENTS.values() for cls in pair]

@@ -11,7 +11,7 @@ exists once, vectorised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -33,7 +33,6 @@ class Episodes:
     mass_kg: np.ndarray
     peak_jerk_mps3: np.ndarray
     peak_friction_temperature_C: np.ndarray
-    extras: dict[str, np.ndarray] = field(default_factory=dict)  # what the task draws per episode
 
 
 def _as_batch(value: Any, n: int, name: str) -> np.ndarray:
@@ -102,7 +101,8 @@ class TrainFleet:
         )
         self.started = np.zeros(n_trains, dtype=bool)
         self.deceleration_mps2 = np.zeros(n_trains)  # mean over the last control step
-        self.previous_deceleration_mps2 = np.zeros(n_trains)
+        self.jerk_mps3 = np.zeros(n_trains)  # change of that mean per control step, 0 on the first
+        self.hottest_friction_temperature_C = np.zeros(n_trains)
         self.overrun = np.zeros(n_trains, dtype=bool)
         instrumented = config.instrumented_disc - 1
         self.observed_discs = (
@@ -171,7 +171,6 @@ class TrainFleet:
         episodes.peak_jerk_mps3[index] = 0.0
         episodes.peak_friction_temperature_C[index] = friction_K.reshape(n, -1).max(axis=1) - KELVIN
         self.deceleration_mps2[index] = 0.0
-        self.previous_deceleration_mps2[index] = 0.0
         self.overrun[index] = False
         self.started[index] = True
 
@@ -199,7 +198,7 @@ class TrainFleet:
             sim.step()
         # What a brake control unit derives from its speed sensor: the mean deceleration of the
         # control step. A train that stopped inside the step decelerated over part of it only.
-        self.previous_deceleration_mps2 = self.deceleration_mps2
+        previous_deceleration = self.deceleration_mps2
         elapsed = np.where(np.isnan(sim.stop_time_s), self.control_step_s, 0.0)
         stopped_now = ~np.isnan(sim.stop_time_s) & (speed_before > 0)
         if stopped_now.any():
@@ -209,14 +208,18 @@ class TrainFleet:
         self.deceleration_mps2 = np.divide(
             speed_before - sim.train[SPEED], elapsed, out=np.zeros(self.n_trains), where=elapsed > 0
         )
-        jerk = np.abs(self.deceleration_mps2 - self.previous_deceleration_mps2) / self.control_step_s
         episodes = self.episodes
         episodes.step += 1
-        first = episodes.step == 1  # the first step's change from rest is the brake's onset, not jerk
-        np.maximum(episodes.peak_jerk_mps3, np.where(first, 0.0, jerk), out=episodes.peak_jerk_mps3)
-        hottest = sim.disc[T_FRIC].reshape(-1, self.n_trains).max(axis=0) - KELVIN
-        np.maximum(episodes.peak_friction_temperature_C, hottest, out=episodes.peak_friction_temperature_C)
-        self.jerk_mps3 = np.where(first, 0.0, jerk)
+        # The first step's change from rest is the brake's onset, not jerk.
+        jerk = np.abs(self.deceleration_mps2 - previous_deceleration) / self.control_step_s
+        self.jerk_mps3 = np.where(episodes.step == 1, 0.0, jerk)
+        np.maximum(episodes.peak_jerk_mps3, self.jerk_mps3, out=episodes.peak_jerk_mps3)
+        self.hottest_friction_temperature_C = sim.disc[T_FRIC].reshape(-1, self.n_trains).max(axis=0) - KELVIN
+        np.maximum(
+            episodes.peak_friction_temperature_C,
+            self.hottest_friction_temperature_C,
+            out=episodes.peak_friction_temperature_C,
+        )
 
     # -------------------------------------------------------------------------------------------
     @property

@@ -92,7 +92,6 @@ class BrakeCore:
         )
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, (fleet.n_groups,), dtype=np.float32)
         self.ended = np.ones(n_trains, dtype=bool)  # no episode running until the first reset
-        self.last_outcome = None
 
     def reset(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any] | None) -> None:
         options = dict(options or {})

@@ -152,20 +152,13 @@ class DecelTracking(BrakeTask):
         config, n = self.config, len(index)
         levels = np.asarray(config.demand_levels_mps2)[rng.integers(0, len(config.demand_levels_mps2), (n, self.n_segments))]
         holds = rng.uniform(config.demand_hold_s.low, config.demand_hold_s.high, (n, self.n_segments))
-        if "demand_mps2" in options:
-            given = np.atleast_1d(np.asarray(options["demand_mps2"], dtype=float))
-            if given.ndim != 1 or len(given) > self.n_segments or np.any(~(given > 0)):
-                raise ValueError(
-                    f"reset option 'demand_mps2' = {options['demand_mps2']}: need 1..{self.n_segments} positive levels"
-                )
-            levels[:, : len(given)] = given
-            levels[:, len(given) :] = given[-1]  # the last level holds to the end
-        if "demand_hold_s" in options:
-            hold = np.atleast_1d(np.asarray(options["demand_hold_s"], dtype=float))
-            if np.any(~(hold > 0)) or hold.ndim != 1 or len(hold) > self.n_segments:
-                raise ValueError(f"reset option 'demand_hold_s' = {options['demand_hold_s']}: need positive hold times")
-            holds[:, : len(hold)] = hold
-            holds[:, len(hold) :] = hold[-1]
+        for name, drawn in (("demand_mps2", levels), ("demand_hold_s", holds)):
+            if name in options:
+                given = np.atleast_1d(np.asarray(options[name], dtype=float))
+                if given.ndim != 1 or len(given) > self.n_segments or np.any(~(given > 0)):
+                    raise ValueError(f"reset option {name!r} = {options[name]}: need 1..{self.n_segments} positive values")
+                drawn[:, : len(given)] = given
+                drawn[:, len(given) :] = given[-1]  # the last value holds to the end
         starts = config.first_demand_time_s + np.concatenate([np.zeros((n, 1)), np.cumsum(holds, axis=1)[:, :-1]], axis=1)
         self.switch_time_s[index] = starts
         self.level_mps2[index] = levels
@@ -216,8 +209,7 @@ class EmergencyStop(BrakeTask):
 
     def judge(self) -> Outcome:
         config, fleet = self.config, self.fleet
-        hottest = fleet.friction_temperature_C().max(axis=1)
-        self.overheated |= hottest > config.disc_temperature_limit_C
+        self.overheated |= fleet.hottest_friction_temperature_C > config.disc_temperature_limit_C
         travelled = fleet.position_m - self.previous_position_m
         self.previous_position_m = fleet.position_m.copy()
         terminated = fleet.standstill | self.overheated
