@@ -297,10 +297,14 @@ def dyno_stops(
     step_s: float = DEFAULT_STEP_S,
     record_every: int | None = None,
     until_time_s: float | None = None,
+    plant: Plant | None = None,
 ) -> StopSummary:
     """One dynamometer stop per entry of ``load_cases`` (a case may repeat), braking from t = 0
-    with the clamp force rising as F_C,nom (1 - exp(-t / tau))."""
-    plant = dynamometer_plant(rig)
+    with the clamp force rising as F_C,nom (1 - exp(-t / tau)).
+
+    ``plant`` replaces the rig's own (:func:`dynamometer_plant`), e.g. with other friction or
+    thermal parameters during an identification; ``draw`` then sets mu_0 and a."""
+    plant = plant or dynamometer_plant(rig)
     material = cfg.load("materials", rig.material)
     n = len(load_cases)
     draw = draw or nominal_draw(material, n, plant.disc_shape)

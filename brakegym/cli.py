@@ -8,6 +8,7 @@
     brakegym train | evaluate | stress   controllers on the environments (brakegym.cli_agents)
     brakegym synth     synthetic recordings with concealed effects (brakegym.recordings.cli)
     brakegym diagnose  locate and name the missing physics in recordings (brakegym.recordings.cli)
+    brakegym identify  fit friction, thermal and scatter parameters to data (brakegym.identification.cli)
 
 JSON keys written by ``dyno``, ``simulate`` and ``mcs`` are a public interface and stay stable.
 Errors in arguments or configs end with a message on stderr and exit status 2.
@@ -357,6 +358,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .recordings.cli import add_diagnose_command
 
     add_diagnose_command(sub)
+
+    from .identification.cli import add_identify_command
+
+    add_identify_command(sub)
     return parser
 
 
