@@ -95,12 +95,24 @@ class SpreadGroup:
 
 def predicted_variance(groups: Sequence[SpreadGroup], sigma: np.ndarray, split: float) -> np.ndarray:
     """Var Y of every group for sigmas (mu_0, a) and the fitted global fraction ``split``."""
-    out = np.empty(len(groups))
-    for k, group in enumerate(groups):
-        f = split if group.global_fraction is None else group.global_fraction
-        per_parameter = f**2 * group.G**2 + (1 - f) ** 2 * group.S
-        out[k] = float(np.dot(sigma**2, per_parameter)) + group.resistance_variance
-    return out
+    return _VarianceModel(groups)(sigma, split)
+
+
+class _VarianceModel:
+    """:func:`predicted_variance` with the groups' sensitivities stacked once (the fit and the
+    bootstrap evaluate it many thousand times)."""
+
+    def __init__(self, groups: Sequence[SpreadGroup]) -> None:
+        self.G2 = np.array([g.G**2 for g in groups])  # (groups, 2)
+        self.S = np.array([g.S for g in groups])
+        known = np.array([np.nan if g.global_fraction is None else g.global_fraction for g in groups])
+        self.free = np.isnan(known)
+        self.known = np.nan_to_num(known)
+        self.resistance = np.array([g.resistance_variance for g in groups])
+
+    def __call__(self, sigma: np.ndarray, split: float) -> np.ndarray:
+        f = np.where(self.free, split, self.known)[:, None]
+        return (f**2 * self.G2 + (1 - f) ** 2 * self.S) @ (np.asarray(sigma) ** 2) + self.resistance
 
 
 # ------------------------------------------------------------------------------------------------
@@ -270,11 +282,12 @@ def _deviance_residuals(variance: np.ndarray, observed: np.ndarray, dof: np.ndar
 
 def _fit(groups: Sequence[SpreadGroup], observed: np.ndarray, start: np.ndarray, lower: np.ndarray, upper: np.ndarray, scale: np.ndarray, fit_split: bool, fixed_split: float) -> np.ndarray:
     dof = np.array([g.dof for g in groups], dtype=float)
+    model = _VarianceModel(groups)
 
     def residuals(u: np.ndarray) -> np.ndarray:
         theta = u * scale
         split = theta[2] if fit_split else fixed_split
-        return _deviance_residuals(predicted_variance(groups, theta[:2], split), observed, dof)
+        return _deviance_residuals(model(theta[:2], split), observed, dof)
 
     solution = optimize.least_squares(residuals, start / scale, bounds=(lower / scale, upper / scale), method="trf", x_scale=1.0)
     return solution.x * scale
