@@ -35,7 +35,7 @@ from numba.core import caching
 from numba.extending import register_jitable
 
 from . import kernel_math
-from .kernel_math import JIT_OPTIONS, choose
+from .kernel_math import JIT_OPTIONS, _choose_integer, choose
 from .physics.elementary import select
 from .physics.friction import bounded_mu, clamp_force_term_per_s, friction_evolves, friction_rate_per_s
 from .physics.mechanics import effective_mu, running_resistance_N
@@ -345,7 +345,7 @@ def _rates_of_tile(
     """Time derivatives of the tile's disc states ``disc`` (6, S) and train states at the speeds
     ``speed_mps`` (T,), into row ``stage`` of ``disc_rates`` (4, 6, S) and ``train_rates``
     (4, 6, T). Per-slot inputs (S,): clamp force and term, friction scale, power coefficient,
-    ambient temperature; per-train inputs (T,). ``train_work`` (4, T) and ``slot_work`` (5, S)
+    ambient temperature; per-train inputs (T,). ``train_work`` (4 arrays (T,)) and ``slot_work`` (10 arrays (S,))
     are scratch. The same as ``NumpyReferenceSimulator._rates``."""
     n_slots = n_discs * n_tile
     ratio = parameters[RADIUS_RATIO]
@@ -355,26 +355,23 @@ def _rates_of_tile(
         train_work[2],
         train_work[3],
     )
+    # Read once, before the loops: inside them LLVM could not tell the parameters apart from the
+    # stores to the work arrays, and would neither hoist the loads nor vectorize.
+    surface_h0, surface_h_ref = parameters[SURFACE_H0_W_PER_M2K], parameters[SURFACE_H_REF_W_PER_M2K]
+    surface_exponent, surface_area = parameters[SURFACE_EXPONENT], parameters[SURFACE_AREA_M2]
+    ventilation_h0, ventilation_h_ref = parameters[VENTILATION_H0_W_PER_M2K], parameters[VENTILATION_H_REF_W_PER_M2K]
+    ventilation_exponent, ventilation_area = parameters[VENTILATION_EXPONENT], parameters[VENTILATION_AREA_M2]
+    reference_sliding = parameters[REFERENCE_SLIDING_SPEED_MPS]
     for t in range(n_tile):
         # Stages may overshoot past standstill inside the stopping step: the forces extrapolate
         # smoothly there (for the stop interpolation), the sliding speed does not go negative.
         v_fric = choose(speed_mps[t] > 0.0, speed_mps[t], 0.0) * ratio
         sliding[t] = v_fric
         surface_conductance[t] = film_conductance_W_per_K(
-            v_fric,
-            parameters[SURFACE_H0_W_PER_M2K],
-            parameters[SURFACE_H_REF_W_PER_M2K],
-            parameters[SURFACE_EXPONENT],
-            parameters[SURFACE_AREA_M2],
-            parameters[REFERENCE_SLIDING_SPEED_MPS],
+            v_fric, surface_h0, surface_h_ref, surface_exponent, surface_area, reference_sliding
         )
         ventilation_conductance[t] = film_conductance_W_per_K(
-            v_fric,
-            parameters[VENTILATION_H0_W_PER_M2K],
-            parameters[VENTILATION_H_REF_W_PER_M2K],
-            parameters[VENTILATION_EXPONENT],
-            parameters[VENTILATION_AREA_M2],
-            parameters[REFERENCE_SLIDING_SPEED_MPS],
+            v_fric, ventilation_h0, ventilation_h_ref, ventilation_exponent, ventilation_area, reference_sliding
         )
     speed_of_slot, sliding_of_slot = slot_work[0], slot_work[1]
     surface_of_slot, ventilation_of_slot, friction_force = slot_work[2], slot_work[3], slot_work[4]
@@ -398,6 +395,10 @@ def _rates_of_tile(
     friction_layer_capacity = parameters[FRICTION_LAYER_HEAT_CAPACITY_J_PER_K]
     disc_body_capacity = parameters[DISC_BODY_HEAT_CAPACITY_J_PER_K]
 
+    # The loop stores into separate arrays (rows of one array at a distance unknown to LLVM would
+    # keep it from vectorizing), copied into the rows of ``disc_rates`` after it.
+    friction_temperature_rate, disc_temperature_rate, mu_distance_rate = slot_work[5], slot_work[6], slot_work[7]
+    friction_heat_rate, cooling_heat_rate = slot_work[8], slot_work[9]
     for slot in range(n_slots):
         mu = bounded_mu(disc[MU, slot], mu_min, mu_max)
         friction_temperature = disc[T_FRIC, slot]
@@ -425,20 +426,28 @@ def _rates_of_tile(
         d_friction_temperature, d_disc_temperature = temperature_rates_K_per_s(
             friction_W, surface_W, conduction_W, ventilation_W, friction_layer_capacity, disc_body_capacity
         )
-        disc_rates[stage, T_FRIC, slot] = d_friction_temperature
-        disc_rates[stage, T_DISC, slot] = d_disc_temperature
-        disc_rates[stage, MU_DISTANCE, slot] = mu * speed_of_slot[slot]
-        disc_rates[stage, FRICTION_HEAT, slot] = friction_W
-        disc_rates[stage, COOLING_HEAT, slot] = surface_W + ventilation_W
+        friction_temperature_rate[slot] = d_friction_temperature
+        disc_temperature_rate[slot] = d_disc_temperature
+        mu_distance_rate[slot] = mu * speed_of_slot[slot]
+        friction_heat_rate[slot] = friction_W
+        cooling_heat_rate[slot] = surface_W + ventilation_W
+    for row, rates in (
+        (T_FRIC, friction_temperature_rate),
+        (T_DISC, disc_temperature_rate),
+        (MU_DISTANCE, mu_distance_rate),
+        (FRICTION_HEAT, friction_heat_rate),
+        (COOLING_HEAT, cooling_heat_rate),
+    ):
+        for slot in range(n_slots):
+            disc_rates[stage, row, slot] = rates[slot]
 
     # Eq. 4 in a loop of its own, skipped when no disc of the tile slides under clamp force
     # (standing trains, released brakes): its three powers are most of the work of a stage.
-    evolving = False
+    # Counted without an early exit, so that the scan vectorizes.
+    evolving_slots = 0
     for slot in range(n_slots):
-        if friction_evolves(clamp_N[slot], sliding_of_slot[slot], min_sliding):
-            evolving = True
-            break
-    if evolving:
+        evolving_slots += _choose_integer(friction_evolves(clamp_N[slot], sliding_of_slot[slot], min_sliding), 1, 0)
+    if evolving_slots > 0:
         for slot in range(n_slots):
             mu = bounded_mu(disc[MU, slot], mu_min, mu_max)
             clamp = clamp_N[slot]
@@ -618,8 +627,13 @@ def fused_rk4_step(
     per_slot = np.empty((2, slots))  # power coefficient, ambient
     unit_friction_scale = np.ones(slots)
     no_extra_force_N = np.zeros(tile)
-    train_work = np.empty((4, tile))
-    slot_work = np.empty((5, slots))
+    # Separate arrays, not rows of one: LLVM vectorizes loops over distinct arrays (checking at
+    # run time that they do not overlap) but not over rows of one array at unknown distances.
+    train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
+    slot_work = (
+        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
+        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
+    )  # fmt: skip
     constants = np.empty((4, n_trains))
     constants[0] = inverse_mass
     constants[1] = resistance_A_N
@@ -712,8 +726,13 @@ def stage_rates(
     clamp_term = np.empty(slots)
     weighted_clamp_N = np.empty(tile)
     per_slot = np.empty((3, slots))  # power coefficient, friction scale, ambient
-    train_work = np.empty((4, tile))
-    slot_work = np.empty((5, slots))
+    # Separate arrays, not rows of one: LLVM vectorizes loops over distinct arrays (checking at
+    # run time that they do not overlap) but not over rows of one array at unknown distances.
+    train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
+    slot_work = (
+        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
+        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
+    )  # fmt: skip
     constants = np.empty((5, n_trains))
     constants[0] = inverse_mass
     constants[1] = resistance_A_N

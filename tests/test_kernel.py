@@ -81,13 +81,13 @@ def test_exp_and_log_special_values():
 
 @pytest.mark.parametrize("exponent", [0.994, 0.533, 1.581, 0.367, 0.4, 0.6])
 def test_fractional_power_over_the_model_range(exponent):
-    """Bases from 1e-6 to 1e3 cover every power of Eqs. 4 and 10 in this model; the error of
-    e^(y ln x) grows with |y ln x|, here below 16 ulp (4e-15)."""
+    """Bases from 1e-6 to 1e3 cover every power of Eqs. 4 and 10 in this model; ln x is carried
+    in two parts into e^(y ln x), so the power is within 1 ulp however large |y ln x| is."""
     rng = np.random.default_rng(1)
     base = np.exp(rng.uniform(math.log(1e-6), math.log(1e3), 100_000))
     out = np.empty_like(base)
     _power_each(base, exponent, out)
-    assert _ulp_error(out, np.power(base, exponent)) <= 20.0
+    assert _ulp_error(out, np.power(base, exponent)) <= 1.0
     _power_each(np.array([0.0, 1.0, np.inf, np.nan]), exponent, out[:4])
     np.testing.assert_array_equal(out[:4], [0.0, 1.0, np.inf, np.nan])
 
