@@ -10,7 +10,8 @@ fractional powers are computed for that).
 
 Two ways through a step, with the same code per tile:
 
-- :func:`fused_rk4_step`: the whole step in one call, for a simulator without extension hooks;
+- :func:`fused_rk4_steps`: whole steps in one call (several, with the brake cylinders' pressure
+  model inside, for an environment's control step), for a simulator without extension hooks;
 - :func:`stage_rates` once per RK4 stage, then :func:`finish_rk4_step`: for a simulator whose
   friction modifiers and extra forces (Python objects) are evaluated between the stages. They
   enter as arrays: a friction scale per disc and an extra force per train.
@@ -105,17 +106,28 @@ N_TRAIN_STATES = 6
     VENTILATION_H_REF_W_PER_M2K,
     VENTILATION_EXPONENT,
     VENTILATION_AREA_M2,
+) = range(33)
+N_PLANT_PARAMETERS = 33
+
+# Rows of the per-train constants (N_TRAIN_CONSTANTS, B) the kernels read (built by the simulator):
+# one array instead of one argument each, so that a call unboxes fewer arguments. The running
+# resistance (Eq. 14) is per train, the drawn one and the nominal one Eq. 15 uses.
+(
+    INVERSE_MASS_PER_KG,
+    RESISTANCE_A_N,
     RESISTANCE_B_N_PER_MPS,
     RESISTANCE_C_N_PER_MPS2,
+    NOMINAL_RESISTANCE_A_N,
     NOMINAL_RESISTANCE_B_N_PER_MPS,
     NOMINAL_RESISTANCE_C_N_PER_MPS2,
-) = range(37)
-N_PLANT_PARAMETERS = 37
+    AMBIENT_K,
+) = range(8)
+N_TRAIN_CONSTANTS = 8
 
 
-def plant_parameters(plant, nominal_running_resistance) -> np.ndarray:
-    """The plant's constants as the vector the kernels read (a ``brakegym.simulator.Plant`` and
-    the running resistance Eq. 15 uses). Per-train and per-disc values are separate arrays."""
+def plant_parameters(plant) -> np.ndarray:
+    """The plant's constants as the vector the kernels read (a ``brakegym.simulator.Plant``).
+    Per-train values (mass, running resistance, ambient) and per-disc values are separate arrays."""
     friction, thermal = plant.friction, plant.thermal
     values = {
         RADIUS_RATIO: plant.radius_ratio,
@@ -151,10 +163,6 @@ def plant_parameters(plant, nominal_running_resistance) -> np.ndarray:
         VENTILATION_H_REF_W_PER_M2K: thermal.ventilation.h_ref_W_per_m2K,
         VENTILATION_EXPONENT: thermal.ventilation.exponent,
         VENTILATION_AREA_M2: thermal.ventilation.area_m2,
-        RESISTANCE_B_N_PER_MPS: plant.running_resistance.B_N_per_mps,
-        RESISTANCE_C_N_PER_MPS2: plant.running_resistance.C_N_per_mps2,
-        NOMINAL_RESISTANCE_B_N_PER_MPS: nominal_running_resistance.B_N_per_mps,
-        NOMINAL_RESISTANCE_C_N_PER_MPS2: nominal_running_resistance.C_N_per_mps2,
     }
     assert sorted(values) == list(range(N_PLANT_PARAMETERS)), "every kernel parameter set exactly once"
     parameters = np.empty(N_PLANT_PARAMETERS)
@@ -333,9 +341,7 @@ def _rates_of_tile(
     extra_force_N,
     power_coefficient,
     ambient_K,
-    resistance_A_N,
-    nominal_resistance_A_N,
-    inverse_mass,
+    constants,
     disc_rates,
     train_rates,
     stage,
@@ -345,7 +351,7 @@ def _rates_of_tile(
     """Time derivatives of the tile's disc states ``disc`` (6, S) and train states at the speeds
     ``speed_mps`` (T,), into row ``stage`` of ``disc_rates`` (4, 6, S) and ``train_rates``
     (4, 6, T). Per-slot inputs (S,): clamp force and term, friction scale, power coefficient,
-    ambient temperature; per-train inputs (T,). ``train_work`` (4 arrays (T,)) and ``slot_work`` (10 arrays (S,))
+    ambient temperature; per-train inputs (T,) and ``constants`` (N_TRAIN_CONSTANTS, T). ``train_work`` (4 arrays (T,)) and ``slot_work`` (10 arrays (S,))
     are scratch. The same as ``NumpyReferenceSimulator._rates``."""
     n_slots = n_discs * n_tile
     ratio = parameters[RADIUS_RATIO]
@@ -479,19 +485,24 @@ def _rates_of_tile(
     for disc_index in range(n_discs):
         for t in range(n_tile):
             friction_sum[t] += friction_force[disc_index * n_tile + t]
-    resistance_B, resistance_C = parameters[RESISTANCE_B_N_PER_MPS], parameters[RESISTANCE_C_N_PER_MPS2]
-    nominal_B, nominal_C = parameters[NOMINAL_RESISTANCE_B_N_PER_MPS], parameters[NOMINAL_RESISTANCE_C_N_PER_MPS2]
     for t in range(n_tile):
         speed = speed_mps[t]
         brake = friction_sum[t] * ratio
-        resistance = running_resistance_N(speed, resistance_A_N[t], resistance_B, resistance_C)
+        resistance = running_resistance_N(
+            speed, constants[RESISTANCE_A_N, t], constants[RESISTANCE_B_N_PER_MPS, t], constants[RESISTANCE_C_N_PER_MPS2, t]
+        )
         total = brake + resistance + extra_force_N[t]
-        train_rates[stage, SPEED, t] = choose(moving[t], -total * inverse_mass[t], 0.0)
+        train_rates[stage, SPEED, t] = choose(moving[t], -total * constants[INVERSE_MASS_PER_KG, t], 0.0)
         train_rates[stage, POSITION, t] = speed
         train_rates[stage, BRAKE_WORK, t] = brake * speed
         train_rates[stage, RESISTANCE_WORK, t] = resistance * speed
         train_rates[stage, EXTRA_WORK, t] = extra_force_N[t] * speed
-        nominal_resistance = running_resistance_N(speed, nominal_resistance_A_N[t], nominal_B, nominal_C)
+        nominal_resistance = running_resistance_N(
+            speed,
+            constants[NOMINAL_RESISTANCE_A_N, t],
+            constants[NOMINAL_RESISTANCE_B_N_PER_MPS, t],
+            constants[NOMINAL_RESISTANCE_C_N_PER_MPS2, t],
+        )
         train_rates[stage, MU_EFF_DISTANCE, t] = effective_mu(total, nominal_resistance, weighted_clamp_N[t]) * speed
 
 
@@ -576,36 +587,60 @@ def _finish_tile(
 # Kernels
 
 
+@numba.njit(**JIT_OPTIONS)
+def _commanded_pressures(step, history, dead_steps, half_lag, full_lag, pressure_bar, command_bar, stage_pressure_bar):
+    """The brake cylinders of :class:`brakegym.simulator.CommandedPressure` over one step: store
+    ``command_bar`` (B, A) in the ring ``history`` at ``step``, and write the pressures at the
+    start, middle and end of the step into ``stage_pressure_bar`` (3, B, A). The same operations
+    in the same order as the class, so the same numbers bit for bit."""
+    slots = history.shape[0]
+    n_trains, n_axles = command_bar.shape
+    here = step % slots
+    for train in range(n_trains):
+        for axle in range(n_axles):
+            history[here, train, axle] = command_bar[train, axle]
+    for train in range(n_trains):
+        target_row = (step - dead_steps[train]) % slots
+        for axle in range(n_axles):
+            target = history[target_row, train, axle]
+            pressure = pressure_bar[train, axle]
+            gap = pressure - target
+            stage_pressure_bar[0, train, axle] = pressure
+            stage_pressure_bar[1, train, axle] = target + gap * half_lag[train]
+            stage_pressure_bar[2, train, axle] = target + gap * full_lag[train]
+
+
 @_compiled
-def fused_rk4_step(
+def fused_rk4_steps(
     parameters,
-    time_s,
+    first_step,
+    n_steps,
     step_s,
+    power_coefficient,
+    constants,
     disc0,
     train0,
     moving0,
-    pressure_start_bar,
-    pressure_mid_bar,
-    pressure_end_bar,
-    power_coefficient,
-    inverse_mass,
-    resistance_A_N,
-    nominal_resistance_A_N,
-    ambient_K,
-    disc1,
-    train1,
-    moving1,
+    cylinders,
+    stage_pressure_bar,
+    discs,
+    trains,
+    movings,
     stop_fraction,
     stop_time_s,
-    clamp_start_N,
-    clamp_end_N,
+    clamp_N,
 ):
-    """One RK4 step of every train, without extension hooks.
+    """``n_steps`` RK4 steps of every train, without extension hooks, in one call.
 
-    Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,) and the
-    cylinder pressures (B, A) at the start, middle and end of the step; writes the new states to
-    ``disc1``, ``train1``, ``moving1``, the stop fraction (nan if none) and the clamp forces at
-    the start and end (A, 1, B); sets ``stop_time_s`` of the trains that stop."""
+    Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,). The cylinder
+    pressures come from ``cylinders``, the state of a ``CommandedPressure`` as (history (H, B, A),
+    dead steps (B,), half-step and full-step lag factors (B,), pressure (B, A), command (B, A)),
+    which the steps advance in place (the pressure row too); or, where its history is empty (H = 0),
+    from ``stage_pressure_bar`` (3, B, A), the pressures at the start, middle and end of a single
+    step. Step n writes the states ``discs[n % 2]`` (two buffers, or one for a single step), ``trains[n % 2]``, ``movings[n % 2]``, and
+    the last step the stop fraction (nan if none) and the clamp forces at its start and end into
+    ``clamp_N`` (2, A, 1, B); sets ``stop_time_s`` of the trains that stop. Time is
+    ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it."""
     n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -617,11 +652,12 @@ def fused_rk4_step(
     train_start = np.empty((N_TRAIN_STATES, tile))
     train_end = np.empty((N_TRAIN_STATES, tile))
     train_rates = np.empty((4, N_TRAIN_STATES, tile))
-    per_train = np.empty((5, tile))  # inverse mass, resistance A, nominal A, ambient, speed
+    per_train = np.empty((N_TRAIN_CONSTANTS, tile))
+    stage_speed = np.empty(tile)
     moving = np.empty(tile, dtype=np.bool_)
     axle_clamp_N = np.empty((3, n_axles * tile))
     axle_clamp_term = np.empty((3, n_axles * tile))
-    clamp_N = np.empty((3, slots))
+    slot_clamp_N = np.empty((3, slots))
     clamp_term = np.empty((3, slots))
     weighted_clamp_N = np.empty((3, tile))
     per_slot = np.empty((2, slots))  # power coefficient, ambient
@@ -634,60 +670,70 @@ def fused_rk4_step(
         np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
         np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
     )  # fmt: skip
-    constants = np.empty((4, n_trains))
-    constants[0] = inverse_mass
-    constants[1] = resistance_A_N
-    constants[2] = nominal_resistance_A_N
-    constants[3] = ambient_K
-    pressures = (pressure_start_bar, pressure_mid_bar, pressure_end_bar)
+    history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar = cylinders
+    commanded = history.shape[0] > 0
+    power_per_disc = power_coefficient.reshape(1, n_axles, per_axle, n_trains)
 
-    for tile_start in range(0, n_trains, tile):
-        n_tile = min(tile, n_trains - tile_start)
-        n_slots = n_discs * n_tile
-        _gather_discs(disc0, tile_start, n_tile, disc_start)
-        _gather_trains(train0, tile_start, n_tile, train_start)
-        _gather_discs(power_coefficient.reshape(1, n_axles, per_axle, n_trains), tile_start, n_tile, per_slot)
-        _gather_trains(constants, tile_start, n_tile, per_train)
-        _per_slot(n_discs, n_tile, per_train[3], per_slot[1])
-        for t in range(n_tile):
-            moving[t] = moving0[tile_start + t]
-            per_train[4, t] = train_start[SPEED, t]
-        for moment in range(3):
-            _clamp_of_tile(
-                parameters, pressures[moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
-                axle_clamp_term[moment], clamp_N[moment], clamp_term[moment], weighted_clamp_N[moment],
-            )  # fmt: skip
-        for axle in range(n_axles):
+    for n in range(n_steps):
+        step = first_step + n
+        time_s = step * step_s
+        disc_in = disc0 if n == 0 else discs[(n - 1) % 2]
+        train_in = train0 if n == 0 else trains[(n - 1) % 2]
+        moving_in = moving0 if n == 0 else movings[(n - 1) % 2]
+        disc_out, train_out, moving_out = discs[n % 2], trains[n % 2], movings[n % 2]
+        if commanded:
+            _commanded_pressures(
+                step, history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar, stage_pressure_bar
+            )
+            cylinder_pressure_bar[:, :] = stage_pressure_bar[2]
+        for tile_start in range(0, n_trains, tile):
+            n_tile = min(tile, n_trains - tile_start)
+            n_slots = n_discs * n_tile
+            _gather_discs(disc_in, tile_start, n_tile, disc_start)
+            _gather_trains(train_in, tile_start, n_tile, train_start)
+            _gather_discs(power_per_disc, tile_start, n_tile, per_slot)
+            _gather_trains(constants, tile_start, n_tile, per_train)
+            _per_slot(n_discs, n_tile, per_train[AMBIENT_K], per_slot[1])
             for t in range(n_tile):
-                clamp_start_N[axle, 0, tile_start + t] = axle_clamp_N[0, axle * n_tile + t]
-                clamp_end_N[axle, 0, tile_start + t] = axle_clamp_N[2, axle * n_tile + t]
-
-        # Stage s is evaluated at the state advanced by stage s - 1's rates, with the clamp force
-        # of the start (s = 0), the middle (1, 2) or the end (3) of the step.
-        for stage in range(4):
-            moment = (stage + 1) // 2
-            if stage == 0:
-                state = disc_start
-            else:
-                fraction = step_s if stage == 3 else 0.5 * step_s
-                _advance_tile(
-                    n_slots, n_tile, disc_start, train_start, disc_rates, train_rates, stage - 1, fraction,
-                    disc_stage, per_train[4],
+                moving[t] = moving_in[tile_start + t]
+                stage_speed[t] = train_start[SPEED, t]
+            for moment in range(3):
+                _clamp_of_tile(
+                    parameters, stage_pressure_bar[moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
+                    axle_clamp_term[moment], slot_clamp_N[moment], clamp_term[moment], weighted_clamp_N[moment],
                 )  # fmt: skip
-                state = disc_stage
-            _rates_of_tile(
-                parameters, n_discs, n_tile, state, per_train[4], moving, clamp_N[moment], clamp_term[moment],
-                weighted_clamp_N[moment], unit_friction_scale, no_extra_force_N, per_slot[0], per_slot[1],
-                per_train[1], per_train[2], per_train[0], disc_rates, train_rates, stage, train_work, slot_work,
+            if n == n_steps - 1:
+                for axle in range(n_axles):
+                    for t in range(n_tile):
+                        clamp_N[0, axle, 0, tile_start + t] = axle_clamp_N[0, axle * n_tile + t]
+                        clamp_N[1, axle, 0, tile_start + t] = axle_clamp_N[2, axle * n_tile + t]
+
+            # Stage s is evaluated at the state advanced by stage s - 1's rates, with the clamp
+            # force of the start (s = 0), the middle (1, 2) or the end (3) of the step.
+            for stage in range(4):
+                moment = (stage + 1) // 2
+                if stage == 0:
+                    state = disc_start
+                else:
+                    fraction = step_s if stage == 3 else 0.5 * step_s
+                    _advance_tile(
+                        n_slots, n_tile, disc_start, train_start, disc_rates, train_rates, stage - 1, fraction,
+                        disc_stage, stage_speed,
+                    )  # fmt: skip
+                    state = disc_stage
+                _rates_of_tile(
+                    parameters, n_discs, n_tile, state, stage_speed, moving, slot_clamp_N[moment], clamp_term[moment],
+                    weighted_clamp_N[moment], unit_friction_scale, no_extra_force_N, per_slot[0], per_slot[1], per_train,
+                    disc_rates, train_rates, stage, train_work, slot_work,
+                )  # fmt: skip
+            _finish_tile(
+                parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
+                train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving_out,
             )  # fmt: skip
-        _finish_tile(
-            parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
-            train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving1,
-        )  # fmt: skip
-        _scatter_discs(disc_end, tile_start, n_tile, disc1)
-        for row in range(N_TRAIN_STATES):
-            for t in range(n_tile):
-                train1[row, tile_start + t] = train_end[row, t]
+            _scatter_discs(disc_end, tile_start, n_tile, disc_out)
+            for row in range(N_TRAIN_STATES):
+                for t in range(n_tile):
+                    train_out[row, tile_start + t] = train_end[row, t]
 
 
 @_compiled
@@ -700,16 +746,14 @@ def stage_rates(
     friction_scale,
     extra_force_N,
     power_coefficient,
-    inverse_mass,
-    resistance_A_N,
-    nominal_resistance_A_N,
-    ambient_K,
+    constants,
     disc_rates,
     train_rates,
 ):
     """Rates of one RK4 stage for the simulator with hooks: states ``disc`` (6, A, k, B) and
     ``train`` (6, B), the stage's cylinder pressures (B, A), the hooks' friction scale (A, k, B)
-    and extra force (B,); writes ``disc_rates`` (6, A, k, B) and ``train_rates`` (6, B)."""
+    and extra force (B,), the per-train ``constants`` (N_TRAIN_CONSTANTS, B); writes
+    ``disc_rates`` (6, A, k, B) and ``train_rates`` (6, B)."""
     n_axles, per_axle, n_trains = disc.shape[1], disc.shape[2], disc.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -718,7 +762,8 @@ def stage_rates(
     rates = np.empty((1, N_DISC_STATES, slots))
     train_of_tile = np.empty((N_TRAIN_STATES, tile))
     rates_of_train = np.empty((1, N_TRAIN_STATES, tile))
-    per_train = np.empty((5, tile))  # inverse mass, resistance A, nominal A, ambient, extra force
+    per_train = np.empty((N_TRAIN_CONSTANTS, tile))
+    extra_of_tile = np.empty(tile)
     moving = np.empty(tile, dtype=np.bool_)
     axle_clamp_N = np.empty(n_axles * tile)
     axle_clamp_term = np.empty(n_axles * tile)
@@ -726,19 +771,11 @@ def stage_rates(
     clamp_term = np.empty(slots)
     weighted_clamp_N = np.empty(tile)
     per_slot = np.empty((3, slots))  # power coefficient, friction scale, ambient
-    # Separate arrays, not rows of one: LLVM vectorizes loops over distinct arrays (checking at
-    # run time that they do not overlap) but not over rows of one array at unknown distances.
     train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
     slot_work = (
         np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
         np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
     )  # fmt: skip
-    constants = np.empty((5, n_trains))
-    constants[0] = inverse_mass
-    constants[1] = resistance_A_N
-    constants[2] = nominal_resistance_A_N
-    constants[3] = ambient_K
-    constants[4] = extra_force_N
     per_disc = np.empty((2, n_axles, per_axle, n_trains))
     per_disc[0] = power_coefficient
     per_disc[1] = friction_scale
@@ -748,17 +785,18 @@ def stage_rates(
         _gather_trains(train, tile_start, n_tile, train_of_tile)
         _gather_discs(per_disc, tile_start, n_tile, per_slot)
         _gather_trains(constants, tile_start, n_tile, per_train)
-        _per_slot(n_discs, n_tile, per_train[3], per_slot[2])
+        _per_slot(n_discs, n_tile, per_train[AMBIENT_K], per_slot[2])
         for t in range(n_tile):
             moving[t] = moving0[tile_start + t]
+            extra_of_tile[t] = extra_force_N[tile_start + t]
         _clamp_of_tile(
             parameters, pressure_bar, tile_start, n_tile, per_axle, axle_clamp_N, axle_clamp_term, clamp_N, clamp_term,
             weighted_clamp_N,
         )  # fmt: skip
         _rates_of_tile(
             parameters, n_discs, n_tile, state, train_of_tile[SPEED], moving, clamp_N, clamp_term, weighted_clamp_N,
-            per_slot[1], per_train[4], per_slot[0], per_slot[2], per_train[1], per_train[2], per_train[0], rates,
-            rates_of_train, 0, train_work, slot_work,
+            per_slot[1], extra_of_tile, per_slot[0], per_slot[2], per_train, rates, rates_of_train, 0, train_work,
+            slot_work,
         )  # fmt: skip
         _scatter_discs(rates[0], tile_start, n_tile, disc_rates)
         for row in range(N_TRAIN_STATES):
@@ -783,7 +821,7 @@ def finish_rk4_step(
     stop_time_s,
 ):
     """The end of a staged step: the four stages' rates (4, 6, A, k, B) and (4, 6, B) combined
-    as in :func:`fused_rk4_step`, with the same stop interpolation."""
+    as in :func:`fused_rk4_steps`, with the same stop interpolation."""
     n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -816,9 +854,7 @@ def finish_rk4_step(
 
 
 @_compiled
-def deceleration_mps2(
-    parameters, disc, train, moving, clamp_N, friction_scale, extra_force_N, inverse_mass, resistance_A_N, out
-):
+def deceleration_mps2(parameters, disc, train, moving, clamp_N, friction_scale, extra_force_N, constants, out):
     """Deceleration of each train at the given state (positive while slowing, 0 at standstill):
     the forces of :func:`_rates_of_tile` without the rates. ``clamp_N`` is (A, 1, B)."""
     n_axles, per_axle, n_trains = disc.shape[1], disc.shape[2], disc.shape[3]
@@ -831,10 +867,13 @@ def deceleration_mps2(
                 friction_sum += mu * friction_scale[axle, k, train_index] * clamp_N[axle, 0, train_index]
         speed = train[SPEED, train_index]
         resistance = running_resistance_N(
-            speed, resistance_A_N[train_index], parameters[RESISTANCE_B_N_PER_MPS], parameters[RESISTANCE_C_N_PER_MPS2]
+            speed,
+            constants[RESISTANCE_A_N, train_index],
+            constants[RESISTANCE_B_N_PER_MPS, train_index],
+            constants[RESISTANCE_C_N_PER_MPS2, train_index],
         )
         total = friction_sum * parameters[RADIUS_RATIO] + resistance + extra_force_N[train_index]
-        out[train_index] = choose(moving[train_index], total * inverse_mass[train_index], 0.0)
+        out[train_index] = choose(moving[train_index], total * constants[INVERSE_MASS_PER_KG, train_index], 0.0)
 
 
 def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
@@ -849,33 +888,41 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
     train = np.zeros((N_TRAIN_STATES, 1))
     moving = np.zeros(1, dtype=np.bool_)
     per_train = np.ones(1)
+    constants = np.ones((N_TRAIN_CONSTANTS, 1))
     per_disc = np.ones((n_axles, discs_per_axle, 1))
     pressure = np.zeros((1, n_axles))
     clamp = np.zeros((n_axles, 1, 1))
     parameters = np.ones(N_PLANT_PARAMETERS)
-    new_disc, new_train, new_moving = np.empty_like(disc), np.empty_like(train), np.empty_like(moving)
+    steps = 2
+    discs, trains = np.empty((2, *disc.shape)), np.empty((2, *train.shape))
+    movings = np.empty((2, 1), dtype=np.bool_)
     stop_fraction, stop_time = np.empty(1), np.full(1, np.nan)
-    fused_rk4_step(
-        parameters, 0.0, 0.1, disc, train, moving, pressure, pressure, pressure, per_disc, per_train, per_train,
-        per_train, per_train, new_disc, new_train, new_moving, stop_fraction, stop_time, clamp.copy(), clamp.copy(),
-    )  # fmt: skip
+    for history_length in (0, 2):  # given stage pressures, and the commanded cylinders
+        cylinders = (
+            np.zeros((history_length, 1, n_axles)), np.zeros(1, dtype=np.int64), per_train, per_train,
+            pressure.copy(), pressure.copy(),
+        )  # fmt: skip
+        fused_rk4_steps(
+            parameters, 0, steps, 0.1, per_disc, constants, disc, train, moving, cylinders, np.zeros((3, 1, n_axles)),
+            discs, trains, movings, stop_fraction, stop_time, np.zeros((2, n_axles, 1, 1)),
+        )  # fmt: skip
     disc_rates, train_rates = np.empty((4, *disc.shape)), np.empty((4, *train.shape))
     for stage in range(4):
         stage_rates(
-            parameters, disc, train, moving, pressure, per_disc, per_train, per_disc, per_train, per_train, per_train,
-            per_train, disc_rates[stage], train_rates[stage],
+            parameters, disc, train, moving, pressure, per_disc, per_train, per_disc, constants, disc_rates[stage],
+            train_rates[stage],
         )  # fmt: skip
     finish_rk4_step(
-        parameters, 0.0, 0.1, disc, train, moving, disc_rates, train_rates, new_disc, new_train, new_moving,
+        parameters, 0.0, 0.1, disc, train, moving, disc_rates, train_rates, discs[0], trains[0], movings[0],
         stop_fraction, stop_time,
     )  # fmt: skip
-    deceleration_mps2(parameters, disc, train, moving, clamp, per_disc, per_train, per_train, per_train, np.empty(1))
+    deceleration_mps2(parameters, disc, train, moving, clamp, per_disc, per_train, constants, np.empty(1))
 
 
 __all__ = [
     "deceleration_mps2",
     "finish_rk4_step",
-    "fused_rk4_step",
+    "fused_rk4_steps",
     "plant_parameters",
     "stage_rates",
     "warm_up",

@@ -185,6 +185,8 @@ class CommandedPressure:
         # dead_steps[b] steps ago. Before any command, the target is the initial pressure.
         self._history = np.repeat(self._pressure[None], int(self._dead_steps.max()) + 1, axis=0)
         self._rows = np.arange(n_trains)
+        # The same factors per train, for the compiled steps (Simulator.step(n_steps)).
+        self._lag_per_train = (np.array(half_lag, dtype=float), np.array(full_lag, dtype=float))
         self._step = 0
         self._command = self._pressure.copy()
 
@@ -227,6 +229,18 @@ class CommandedPressure:
     def advance(self) -> None:
         self._pressure = self._end
         self._step += 1
+
+    def kernel_state(self) -> tuple[np.ndarray, ...]:
+        """What :func:`brakegym.kernel.fused_rk4_steps` runs these cylinders from: the command
+        history (advanced in place), dead steps, half-step and full-step lag factors per train, a
+        copy of the pressures (the kernel advances it) and the command. See :meth:`advanced_by`."""
+        half_lag, full_lag = self._lag_per_train
+        return self._history, self._dead_steps, half_lag, full_lag, self._pressure.copy(), self._command
+
+    def advanced_by(self, n_steps: int, pressure_bar: np.ndarray) -> None:
+        """Take over the end of ``n_steps`` steps the compiled kernel ran from :meth:`kernel_state`."""
+        self._pressure = pressure_bar
+        self._step += n_steps
 
 
 class PrescribedPressure:
@@ -322,23 +336,26 @@ class Simulator:
         n = conditions.n_trains
         disc_shape = (*plant.disc_shape, n)
         self.mass_kg = np.array(conditions.mass_kg, dtype=float).reshape(n)  # own copy: reset_trains writes it
-        self._inverse_mass = 1.0 / self.mass_kg
-        self.resistance_A_N = np.broadcast_to(np.asarray(conditions.running_resistance_A_N, dtype=float), (n,)).copy()
+        # Everything per train the kernels read, in one array (rows kernel.INVERSE_MASS_PER_KG, ...):
+        # one argument per call instead of eight. The running resistance may differ per train in
+        # all three coefficients; the drawn A comes with the conditions.
+        self._constants = np.empty((kernel.N_TRAIN_CONSTANTS, n))
+        self._constants[kernel.INVERSE_MASS_PER_KG] = 1.0 / self.mass_kg
+        self._constants[kernel.RESISTANCE_A_N] = conditions.running_resistance_A_N
+        self._constants[kernel.AMBIENT_K] = conditions.ambient_temperature_K
+        resistance, nominal = plant.running_resistance, self.nominal_running_resistance
+        for row, value, name in (
+            (kernel.RESISTANCE_B_N_PER_MPS, resistance.B_N_per_mps, "running resistance B_N_per_mps"),
+            (kernel.RESISTANCE_C_N_PER_MPS2, resistance.C_N_per_mps2, "running resistance C_N_per_mps2"),
+            (kernel.NOMINAL_RESISTANCE_A_N, nominal.A_N, "nominal running resistance A_N"),
+            (kernel.NOMINAL_RESISTANCE_B_N_PER_MPS, nominal.B_N_per_mps, "nominal running resistance B_N_per_mps"),
+            (kernel.NOMINAL_RESISTANCE_C_N_PER_MPS2, nominal.C_N_per_mps2, "nominal running resistance C_N_per_mps2"),
+        ):
+            if np.ndim(value) and np.shape(value) != (n,):
+                raise ValueError(f"{name}: one value or one per train ({n}), got shape {np.shape(value)}")
+            self._constants[row] = value
         self.power_coefficient = self.to_internal(conditions.power_coefficient_per_s)
-        self.ambient_K = np.broadcast_to(np.asarray(conditions.ambient_temperature_K, dtype=float), (n,)).copy()
-        self._nominal_resistance_A_N = np.broadcast_to(
-            np.asarray(self.nominal_running_resistance.A_N, dtype=float), (n,)
-        ).copy()
-        for law, which in ((plant.running_resistance, "plant"), (self.nominal_running_resistance, "nominal")):
-            if np.ndim(law.B_N_per_mps) or np.ndim(law.C_N_per_mps2):
-                # The compiled kernels hold B and C as constants of the plant; only A varies per
-                # train (BatchConditions.running_resistance_A_N).
-                raise ValueError(
-                    f"{which} running resistance: B_N_per_mps and C_N_per_mps2 must be single values for "
-                    f"the whole batch, got arrays of shape {np.shape(law.B_N_per_mps)} / "
-                    f"{np.shape(law.C_N_per_mps2)}; simulate trains with other B or C in their own batch"
-                )
-        self._parameters = kernel.plant_parameters(plant, self.nominal_running_resistance)
+        self._parameters = kernel.plant_parameters(plant)
 
         self.disc = np.zeros((len(DISC_STATES), *disc_shape))
         self.disc[MU] = self.to_internal(conditions.initial_mu)
@@ -389,6 +406,19 @@ class Simulator:
         self.stop_time_s[index] = np.nan
 
     # ----------------------------------------------------------------------------------------
+    # Rows of the per-train constants, as views: writing to them writes what the kernels read.
+    @property
+    def resistance_A_N(self) -> np.ndarray:
+        return self._constants[kernel.RESISTANCE_A_N]
+
+    @property
+    def ambient_K(self) -> np.ndarray:
+        return self._constants[kernel.AMBIENT_K]
+
+    @property
+    def _inverse_mass(self) -> np.ndarray:
+        return self._constants[kernel.INVERSE_MASS_PER_KG]
+
     @property
     def time_s(self) -> float:
         return self.step_index * self.step_s
@@ -464,26 +494,66 @@ class Simulator:
         )
 
     # ----------------------------------------------------------------------------------------
-    def step(self) -> StepRecord:
-        """Advance every train by one step."""
-        return self._step_staged() if self.has_hooks else self._step_fused()
+    def step(self, n_steps: int = 1) -> StepRecord:
+        """Advance every train by ``n_steps`` steps and return the record of the last one.
 
-    def _step_fused(self) -> StepRecord:
-        t = self.time_s
-        p_start, p_mid, p_end = self._pressures(self.pressure)
+        Without hooks and with :class:`CommandedPressure` the steps run in one compiled call, the
+        cylinders' pressure model included (an environment's control step: one call instead of
+        one per step); the results are the same as one step at a time, bit for bit."""
+        if n_steps < 1:
+            raise ValueError(f"n_steps = {n_steps}: must be at least 1")
+        if self.has_hooks:
+            for _ in range(n_steps):
+                record = self._step_staged()
+            return record
+        if isinstance(self.pressure, CommandedPressure):
+            return self._steps_fused(n_steps, self.pressure)
+        for _ in range(n_steps):
+            record = self._steps_fused(1, None)
+        return record
+
+    def _steps_fused(self, n_steps: int, commanded: CommandedPressure | None) -> StepRecord:
+        n, axles = self.n_trains, self.plant.n_axles
         disc0, train0, moving0 = self.disc, self.train, self.moving
-        disc1, train1 = np.empty_like(disc0), np.empty_like(train0)
-        moving1 = np.empty_like(moving0)
-        stop_fraction = np.empty(self.n_trains)
-        clamp_shape = (self.plant.n_axles, 1, self.n_trains)
-        clamp_start, clamp_end = np.empty(clamp_shape), np.empty(clamp_shape)
-        kernel.fused_rk4_step(
-            self._parameters, t, self.step_s, disc0, train0, moving0, p_start, p_mid, p_end,
-            self.power_coefficient, self._inverse_mass, self.resistance_A_N, self._nominal_resistance_A_N,
-            self.ambient_K, disc1, train1, moving1, stop_fraction, self.stop_time_s, clamp_start, clamp_end,
+        buffers = min(n_steps, 2)
+        discs, trains = np.empty((buffers, *disc0.shape)), np.empty((buffers, *train0.shape))
+        movings = np.empty((buffers, n), dtype=bool)
+        stop_fraction = np.empty(n)
+        clamp = np.empty((2, axles, 1, n))
+        if commanded is not None:
+            cylinders = commanded.kernel_state()
+            stage_pressures = np.empty((3, n, axles))
+        else:
+            cylinders = self._no_cylinders
+            stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
+        kernel.fused_rk4_steps(
+            self._parameters, self.step_index, n_steps, self.step_s, self.power_coefficient, self._constants, disc0,
+            train0, moving0, cylinders, stage_pressures, discs, trains, movings, stop_fraction, self.stop_time_s, clamp,
         )  # fmt: skip
-        record = StepRecord(t, disc0, train0, clamp_start, clamp_end, stop_fraction)
-        return self._advance(record, disc1, train1, moving1)
+        last = (n_steps - 1) % 2
+        if n_steps == 1:
+            disc_start, train_start = disc0, train0
+        else:
+            disc_start, train_start = discs[1 - last], trains[1 - last]
+        record = StepRecord(
+            (self.step_index + n_steps - 1) * self.step_s, disc_start, train_start, clamp[0], clamp[1], stop_fraction
+        )
+        # New arrays every call: the record keeps the pre-step state, which nothing writes to.
+        self.disc, self.train, self.moving = discs[last], trains[last], movings[last]
+        if commanded is not None:
+            commanded.advanced_by(n_steps, cylinders[4])
+        else:
+            self.pressure.advance()
+        self.step_index += n_steps
+        self.last_step = record
+        return record
+
+    @property
+    def _no_cylinders(self) -> tuple[np.ndarray, ...]:
+        """An empty history: the kernel then takes the stage pressures it is given."""
+        n, axles = self.n_trains, self.plant.n_axles
+        none = np.zeros(n)
+        return np.zeros((0, n, axles)), np.zeros(n, dtype=np.int64), none, none, np.zeros((n, axles)), np.zeros((n, axles))
 
     def _step_staged(self) -> StepRecord:
         """RK4 in Python around the compiled stage rates, so that the hooks see every stage."""
@@ -505,8 +575,7 @@ class Simulator:
             scale, extra = self._hook_arrays(self._context(time_s, disc, train, clamp_force))
             kernel.stage_rates(
                 self._parameters, disc, train, moving0, pressure, scale, extra, self.power_coefficient,
-                self._inverse_mass, self.resistance_A_N, self._nominal_resistance_A_N, self.ambient_K,
-                disc_rates[stage], train_rates[stage],
+                self._constants, disc_rates[stage], train_rates[stage],
             )  # fmt: skip
             if fraction_for_next is not None:
                 disc = disc0 + fraction_for_next * disc_rates[stage]
@@ -540,8 +609,7 @@ class Simulator:
             scale, extra = np.ones(self.disc.shape[1:]), np.zeros(self.n_trains)
         out = np.empty(self.n_trains)
         kernel.deceleration_mps2(
-            self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._inverse_mass,
-            self.resistance_A_N, out,
+            self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._constants, out
         )  # fmt: skip
         return out
 
@@ -611,8 +679,15 @@ class NumpyReferenceSimulator(Simulator):
         d_train[MU_EFF_DISTANCE] = effective_mu(total, nominal_resistance, weighted_clamp) * speed
         return d_disc, d_train
 
-    def step(self) -> StepRecord:
-        """Advance every train by one step."""
+    def step(self, n_steps: int = 1) -> StepRecord:
+        """Advance every train by ``n_steps`` steps, one at a time."""
+        if n_steps < 1:
+            raise ValueError(f"n_steps = {n_steps}: must be at least 1")
+        for _ in range(n_steps):
+            record = self._step_once()
+        return record
+
+    def _step_once(self) -> StepRecord:
         h = self.step_s
         t = self.time_s
         p_start, p_mid, p_end = self.pressure.stage_pressures_bar()

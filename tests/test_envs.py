@@ -323,25 +323,47 @@ def test_reset_trains_equals_a_fresh_simulator():
     np.testing.assert_array_equal(running.train[:, [1, 3]], fresh.train)
 
 
-def test_per_train_resistance_B_and_C_are_refused_clearly():
-    """The compiled kernels take B and C per plant; an array must fail with a message, not a
-    numpy error from deep inside."""
+def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
+    """B and C of the running resistance may differ per train (the kernels read them per train
+    like A): a batch gives each train what it gets alone with its own plant, bit for bit, and
+    the numpy reference agrees."""
     import dataclasses
 
     from brakegym import config as cfg
     from brakegym.applications import train_plant
     from brakegym.physics import BrakeCylinder, RunningResistance
-    from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
+    from brakegym.simulator import BatchConditions, CommandedPressure, NumpyReferenceSimulator, Simulator
 
-    plant = train_plant(cfg.load("vehicles", "emu_8axle"))
-    plant = dataclasses.replace(plant, running_resistance=RunningResistance(A_N=2500.0, B_N_per_mps=np.array([30.0, 60.0]), C_N_per_mps2=5.0))
-    shape = (2, *plant.disc_shape)
-    conditions = BatchConditions(
-        mass_kg=np.full(2, 1.2e5), initial_speed_mps=np.full(2, 20.0), initial_mu=np.full(shape, 0.35),
-        power_coefficient_per_s=np.full(shape, 0.004), running_resistance_A_N=np.full(2, 2500.0),
-        initial_friction_temperature_K=np.full(shape, 300.0), initial_disc_temperature_K=np.full(shape, 300.0),
-        ambient_temperature_K=np.full(2, 293.15),
-    )  # fmt: skip
-    cylinder = BrakeCylinder(dead_time_s=0.2, time_constant_s=0.8)
-    with pytest.raises(ValueError, match="B_N_per_mps and C_N_per_mps2 must be single values"):
-        Simulator(plant, conditions, CommandedPressure([cylinder] * 2, 8, 0.1), step_s=0.1)
+    base = train_plant(cfg.load("vehicles", "emu_8axle"))
+    B, C = np.array([30.0, 60.0, 10.0]), np.array([5.0, 2.0, 8.0])
+    n = len(B)
+
+    def run(plant, index, simulator=Simulator):
+        shape = (len(index), *plant.disc_shape)
+        conditions = BatchConditions(
+            mass_kg=np.full(len(index), 1.2e5), initial_speed_mps=np.full(len(index), 30.0),
+            initial_mu=np.full(shape, 0.35), power_coefficient_per_s=np.full(shape, 0.004),
+            running_resistance_A_N=np.full(len(index), 2500.0), initial_friction_temperature_K=np.full(shape, 300.0),
+            initial_disc_temperature_K=np.full(shape, 300.0), ambient_temperature_K=np.full(len(index), 293.15),
+        )  # fmt: skip
+        pressure = CommandedPressure([BrakeCylinder(0.2, 0.8)] * len(index), plant.n_axles, 0.1)
+        pressure.set_command(np.full((len(index), plant.n_axles), 2.0))
+        sim = simulator(plant, conditions, pressure, step_s=0.1)
+        for _ in range(100):
+            sim.step()
+        return sim
+
+    batch_plant = dataclasses.replace(base, running_resistance=RunningResistance(A_N=2500.0, B_N_per_mps=B, C_N_per_mps2=C))
+    batch = run(batch_plant, np.arange(n))
+    for i in range(n):
+        alone_plant = dataclasses.replace(base, running_resistance=RunningResistance(2500.0, float(B[i]), float(C[i])))
+        alone = run(alone_plant, [i])
+        np.testing.assert_array_equal(batch.train[:, i], alone.train[:, 0])
+        np.testing.assert_array_equal(batch.disc[..., i], alone.disc[..., 0])
+    reference = run(batch_plant, np.arange(n), NumpyReferenceSimulator)
+    np.testing.assert_allclose(batch.train, reference.train, rtol=1e-12)
+    assert len(np.unique(batch.train[0])) == n, "different resistances give different speeds"
+
+    wrong = dataclasses.replace(base, running_resistance=RunningResistance(2500.0, np.array([30.0, 60.0]), 5.0))
+    with pytest.raises(ValueError, match="running resistance B_N_per_mps: one value or one per train"):
+        run(wrong, np.arange(n))

@@ -188,8 +188,7 @@ def test_stage_rates_match_the_numpy_reference_on_random_states(plant, with_hook
     disc_rates, train_rates = np.empty_like(reference.disc), np.empty_like(reference.train)
     kernel.stage_rates(
         compiled._parameters, reference.disc, reference.train, reference.moving, pressure_bar, scale, extra,
-        compiled.power_coefficient, compiled._inverse_mass, compiled.resistance_A_N, compiled._nominal_resistance_A_N,
-        compiled.ambient_K, disc_rates, train_rates,
+        compiled.power_coefficient, compiled._constants, disc_rates, train_rates,
     )  # fmt: skip
     # 1e-12 relative to the size of each quantity over the batch (a rate that is a small
     # difference of large heat flows is compared at the scale of those flows).
@@ -352,3 +351,53 @@ def test_kernel_cache_stamp_covers_the_physics_sources(tmp_path):
     friction = tmp_path / "friction.py"
     friction.write_text(friction.read_text() + "\n# an edit\n")
     assert kernel.cache_sources_digest(copies) != kernel._SOURCES_DIGEST
+
+
+@pytest.mark.parametrize("cylinder_kinds", ["uniform", "mixed"])
+def test_several_steps_in_one_call_equal_single_steps(plant, cylinder_kinds):
+    """Simulator.step(n) runs the cylinders' pressure model inside the compiled call: the same
+    states, pressures, stop times and last-step record as n single steps, bit for bit, with
+    commands changing between calls and trains stopping inside them."""
+    rng = np.random.default_rng(11)
+    n = 21  # a full tile and a partial one
+    cylinders = [BrakeCylinder(0.2, 0.8)] * n
+    if cylinder_kinds == "mixed":
+        cylinders = [BrakeCylinder(0.1 * (i % 3), 0.5 + 0.1 * (i % 4)) for i in range(n)]
+    conditions = _random_batch(plant, n, rng)
+    conditions.initial_speed_mps = rng.uniform(0.5, 8.0, n)
+    sims = [Simulator(plant, conditions, CommandedPressure(cylinders, plant.n_axles, 0.1), 0.1) for _ in range(2)]
+    for call in range(40):
+        command = rng.uniform(0.0, 4.5, (n, plant.n_axles))
+        n_steps = 1 + call % 3
+        for sim in sims:
+            sim.pressure.set_command(command)
+        many = sims[0].step(n_steps)
+        for _ in range(n_steps):
+            single = sims[1].step()
+        for a, b in ((sims[0].disc, sims[1].disc), (sims[0].train, sims[1].train), (sims[0].moving, sims[1].moving)):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(sims[0].stop_time_s, sims[1].stop_time_s)
+        np.testing.assert_array_equal(sims[0].pressure.pressure_bar, sims[1].pressure.pressure_bar)
+        assert sims[0].time_s == sims[1].time_s
+        assert many.time_start_s == single.time_start_s
+        for name in ("disc_start", "train_start", "clamp_force_start_N", "clamp_force_end_N", "stop_fraction"):
+            np.testing.assert_array_equal(getattr(many, name), getattr(single, name), err_msg=name)
+    assert (~sims[0].moving).sum() >= n // 2, "trains stopped inside the calls"
+
+
+def test_numpy_reference_cylinders_equal_the_compiled_ones(plant):
+    """The kernel's copy of CommandedPressure gives the class's pressures bit for bit."""
+    rng = np.random.default_rng(12)
+    n = 5
+    cylinders = [BrakeCylinder(0.1 * i, 0.4 + 0.2 * i) for i in range(n)]
+    conditions = _random_batch(plant, n, rng)
+    compiled = Simulator(plant, conditions, CommandedPressure(cylinders, plant.n_axles, 0.1), 0.1)
+    python = CommandedPressure(cylinders, plant.n_axles, 0.1)
+    for _ in range(30):
+        command = rng.uniform(0.0, 4.5, (n, plant.n_axles))
+        compiled.pressure.set_command(command)
+        python.set_command(command)
+        compiled.step()
+        python.stage_pressures_bar()
+        python.advance()
+        np.testing.assert_array_equal(compiled.pressure.pressure_bar, python.pressure_bar)

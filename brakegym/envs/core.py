@@ -194,8 +194,7 @@ class TrainFleet:
         self.pressure.set_command(self.commands_bar(actions))
         sim = self.sim
         speed_before = sim.train[SPEED].copy()
-        for _ in range(self.substeps):
-            sim.step()
+        sim.step(self.substeps)
         # What a brake control unit derives from its speed sensor: the mean deceleration of the
         # control step. A train that stopped inside the step decelerated over part of it only.
         previous_deceleration = self.deceleration_mps2

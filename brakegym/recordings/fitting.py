@@ -151,11 +151,6 @@ class FitProblem:
     ) -> tuple[np.ndarray, list[list[Replay]]]:
         """Residuals (m, rows) of ``m`` parameter points (m, len(free) + 3n), in one batch."""
         points = np.atleast_2d(points)
-        if "running_resistance" in effect_ids and len(points) > 1:
-            # The simulator's compiled kernel takes B and C of the running resistance as one value
-            # per batch (A per application): simulate each parameter point on its own.
-            parts = [self.simulate(effect_ids, fixed, free, point[None]) for point in points]
-            return np.concatenate([r for r, _ in parts]), [g for _, groups in parts for g in groups]
         m, n = len(points), self.n
         p = len(free)
         theta = points[:, :p]
@@ -165,8 +160,6 @@ class FitProblem:
         values: dict[str, dict[str, np.ndarray]] = {eid: {} for eid in effect_ids}
         for j, parameter in enumerate(free):
             values[parameter.effect_id][parameter.name] = np.repeat(theta[:, j], n)
-            if parameter.name in ("B_Nspm", "C_Ns2pm2"):
-                values[parameter.effect_id][parameter.name] = float(theta[0, j])
         for eid in effect_ids:
             for spec in EFFECTS[eid].parameters:
                 if spec.name in fixed:
