@@ -91,6 +91,11 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
         path = write_report(result, args.report, Path(args.dataset_dir).name)
         print(f"report: {path}")
+    if args.effects_out:
+        from .diagnosis import write_effect_set
+
+        path = write_effect_set(report, args.effects_out, Path(args.dataset_dir).name)
+        print(f"effect set: {path} (load it with brakegym.recordings.effects.load_effects)")
     print(f"selected: {', '.join(report['selected']) or 'nothing'}")
     print(report["summary"])
     return 0
@@ -109,6 +114,10 @@ def add_diagnose_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("dataset_dir", metavar="DATASET_DIR", help="folder of recordings (<stem>.csv + <stem>.json)")
     p.add_argument("--json", help="write the report as JSON (a public interface)")
     p.add_argument("--report", metavar="DIR", help="folder for the Markdown report and its figures")
+    p.add_argument(
+        "--effects-out", metavar="FILE.yaml",
+        help="write the selected effects with their fitted parameters as an effect set (configs/effects schema)",
+    )
     p.add_argument("--top-singles", type=_count("--top-singles", 1), default=3, help="screened effects fitted in full (default 3)")
     p.add_argument("--pairs-from", type=_count("--pairs-from", 0), default=2, help="pairs among this many best singles (default 2)")
     p.set_defaults(func=cmd_diagnose)
