@@ -618,6 +618,8 @@ def fused_rk4_steps(
     step_s,
     power_coefficient,
     constants,
+    friction_scale,
+    extra_force_N,
     disc0,
     train0,
     moving0,
@@ -630,7 +632,9 @@ def fused_rk4_steps(
     stop_time_s,
     clamp_N,
 ):
-    """``n_steps`` RK4 steps of every train, without extension hooks, in one call.
+    """``n_steps`` RK4 steps of every train, with extension hooks only where they are constant
+    (a friction scale per disc ``friction_scale`` (A, k, B), an extra retarding force per train
+    ``extra_force_N`` (B,)), in one call.
 
     Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,). The cylinder
     pressures come from ``cylinders``, the state of a ``CommandedPressure`` as (history (H, B, A),
@@ -661,8 +665,8 @@ def fused_rk4_steps(
     clamp_term = np.empty((3, slots))
     weighted_clamp_N = np.empty((3, tile))
     per_slot = np.empty((2, slots))  # power coefficient, ambient
-    unit_friction_scale = np.ones(slots)
-    no_extra_force_N = np.zeros(tile)
+    slot_friction_scale = np.empty((1, slots))
+    tile_extra_force_N = np.empty((1, tile))
     # Separate arrays, not rows of one: LLVM vectorizes loops over distinct arrays (checking at
     # run time that they do not overlap) but not over rows of one array at unknown distances.
     train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
@@ -673,6 +677,8 @@ def fused_rk4_steps(
     history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar = cylinders
     commanded = history.shape[0] > 0
     power_per_disc = power_coefficient.reshape(1, n_axles, per_axle, n_trains)
+    friction_scale_per_disc = friction_scale.reshape(1, n_axles, per_axle, n_trains)
+    extra_force_per_train = extra_force_N.reshape(1, n_trains)
 
     for n in range(n_steps):
         step = first_step + n
@@ -692,6 +698,8 @@ def fused_rk4_steps(
             _gather_discs(disc_in, tile_start, n_tile, disc_start)
             _gather_trains(train_in, tile_start, n_tile, train_start)
             _gather_discs(power_per_disc, tile_start, n_tile, per_slot)
+            _gather_discs(friction_scale_per_disc, tile_start, n_tile, slot_friction_scale)
+            _gather_trains(extra_force_per_train, tile_start, n_tile, tile_extra_force_N)
             _gather_trains(constants, tile_start, n_tile, per_train)
             _per_slot(n_discs, n_tile, per_train[AMBIENT_K], per_slot[1])
             for t in range(n_tile):
@@ -723,7 +731,7 @@ def fused_rk4_steps(
                     state = disc_stage
                 _rates_of_tile(
                     parameters, n_discs, n_tile, state, stage_speed, moving, slot_clamp_N[moment], clamp_term[moment],
-                    weighted_clamp_N[moment], unit_friction_scale, no_extra_force_N, per_slot[0], per_slot[1], per_train,
+                    weighted_clamp_N[moment], slot_friction_scale[0], tile_extra_force_N[0], per_slot[0], per_slot[1], per_train,
                     disc_rates, train_rates, stage, train_work, slot_work,
                 )  # fmt: skip
             _finish_tile(
@@ -903,7 +911,8 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
             pressure.copy(), pressure.copy(),
         )  # fmt: skip
         fused_rk4_steps(
-            parameters, 0, steps, 0.1, per_disc, constants, disc, train, moving, cylinders, np.zeros((3, 1, n_axles)),
+            parameters, 0, steps, 0.1, per_disc, constants, per_disc, np.zeros(1), disc, train, moving, cylinders,
+            np.zeros((3, 1, n_axles)),
             discs, trains, movings, stop_fraction, stop_time, np.zeros((2, n_axles, 1, 1)),
         )  # fmt: skip
     disc_rates, train_rates = np.empty((4, *disc.shape)), np.empty((4, *train.shape))

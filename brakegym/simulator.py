@@ -129,12 +129,19 @@ class StageContext:
 
 
 class ExtraForce(Protocol):
+    """A force term. A term whose class sets ``constant = True`` promises that its value does not
+    depend on the context (state or time): the simulator then evaluates it once per call of
+    :meth:`Simulator.step` and integrates in the compiled kernel, instead of calling it at every
+    RK4 stage."""
+
     def force_N(self, context: StageContext) -> np.ndarray:
         """Retarding force on each train, N, shape (B,); negative pushes the train on."""
         ...
 
 
 class FrictionModifier(Protocol):
+    """A factor on friction; ``constant = True`` as for :class:`ExtraForce`."""
+
     def scale(self, context: StageContext) -> np.ndarray | float:
         """Factor on each disc's effective coefficient of friction, broadcastable to (A, k, B)."""
         ...
@@ -369,6 +376,9 @@ class Simulator:
         self.stop_time_s = np.full(n, np.nan)
         self.step_index = 0
         self.last_step: StepRecord | None = None
+        # What the compiled kernel integrates with when no hook takes part.
+        self._unit_friction_scale = np.ones(self.disc.shape[1:])
+        self._no_extra_force_N = np.zeros(n)
 
     def reset_trains(self, index: np.ndarray, conditions: BatchConditions) -> None:
         """Restart the trains ``index`` from ``conditions`` (a batch of ``len(index)``), leaving
@@ -445,8 +455,9 @@ class Simulator:
 
     @property
     def has_hooks(self) -> bool:
-        """Whether extra forces or friction modifiers take part (they need the staged path)."""
-        return bool(self.extra_forces or self.friction_modifiers)
+        """Whether hooks that depend on the state take part (they need the staged path, which
+        calls them at every RK4 stage); constant hooks run in the compiled kernel."""
+        return any(not getattr(hook, "constant", False) for hook in (*self.extra_forces, *self.friction_modifiers))
 
     def _context(self, time_s: float, disc: np.ndarray, train: np.ndarray, clamp_force: np.ndarray) -> StageContext:
         return StageContext(
@@ -526,9 +537,15 @@ class Simulator:
         else:
             cylinders = self._no_cylinders
             stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
+        if self.extra_forces or self.friction_modifiers:
+            clamp_force = self.clamp_force_N(np.asarray(self.pressure.pressure_bar, dtype=float))
+            friction_scale, extra_force_N = self._hook_arrays(self._context(self.time_s, disc0, train0, clamp_force))
+        else:
+            friction_scale, extra_force_N = self._unit_friction_scale, self._no_extra_force_N
         kernel.fused_rk4_steps(
-            self._parameters, self.step_index, n_steps, self.step_s, self.power_coefficient, self._constants, disc0,
-            train0, moving0, cylinders, stage_pressures, discs, trains, movings, stop_fraction, self.stop_time_s, clamp,
+            self._parameters, self.step_index, n_steps, self.step_s, self.power_coefficient, self._constants,
+            friction_scale, extra_force_N, disc0, train0, moving0, cylinders, stage_pressures, discs, trains, movings,
+            stop_fraction, self.stop_time_s, clamp,
         )  # fmt: skip
         last = (n_steps - 1) % 2
         if n_steps == 1:

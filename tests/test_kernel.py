@@ -260,6 +260,35 @@ def test_fused_and_staged_paths_agree(vehicle, plant):
         np.testing.assert_allclose(getattr(staged, name), getattr(fused, name), rtol=1e-12, atol=0.0, err_msg=name)
 
 
+class _ConstantScale(_ArrayScale):
+    constant = True
+
+
+class _ConstantForce(_ArrayForce):
+    constant = True
+
+
+def test_constant_hooks_run_compiled_and_agree_with_the_staged_path(vehicle, plant):
+    """Hooks that declare themselves constant (a friction level, a gradient) are integrated in
+    the compiled kernel; they must give what the staged path gives with the same values, and
+    their work must close the energy balance."""
+    apps = _mixed_applications()
+    n = len(apps)
+    draw = _scatter_draw(vehicle, plant, n, 7)
+    rng = np.random.default_rng(3)
+    scale = rng.uniform(0.8, 1.2, (n,))
+    force_N = rng.uniform(-8000.0, 8000.0, (n,))
+    staged = train_stops(vehicle, apps, draw=draw, friction_modifiers=[_ArrayScale(scale)], extra_forces=[_ArrayForce(force_N)])
+    compiled = train_stops(
+        vehicle, apps, draw=draw, friction_modifiers=[_ConstantScale(scale)], extra_forces=[_ConstantForce(force_N)]
+    )
+    for name in SUMMARY_FIELDS:
+        np.testing.assert_allclose(getattr(compiled, name), getattr(staged, name), rtol=1e-12, atol=0.0, err_msg=name)
+    total = compiled.brake_work_J + compiled.resistance_work_J + compiled.extra_work_J
+    np.testing.assert_allclose(total, compiled.initial_kinetic_energy_J, rtol=0.005)
+    assert np.any(compiled.extra_work_J != 0.0)
+
+
 def test_fused_and_staged_paths_agree_on_the_dynamometer():
     rig = cfg.load("rigs", "dynamometer")
     plant = dynamometer_plant(rig)

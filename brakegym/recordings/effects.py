@@ -207,6 +207,7 @@ class ConstantForce:
     """A retarding force per train that does not change during the run (a gradient)."""
 
     force: np.ndarray  # (B,)
+    constant: ClassVar[bool] = True  # the simulator integrates it in its compiled kernel
 
     def force_N(self, context: StageContext) -> np.ndarray:
         return self.force
@@ -215,6 +216,7 @@ class ConstantForce:
 @dataclass(frozen=True)
 class ConstantFrictionFactor:
     factor: Value  # scalar, (B,) or (A, k, B)
+    constant: ClassVar[bool] = True
 
     def scale(self, context: StageContext) -> Value:
         return self.factor
