@@ -64,7 +64,7 @@ from gymnasium.vector.utils import batch_space
 
 from .config import BrakeEnvConfig, environment_config
 from .core import TrainFleet
-from .tasks import TASKS, BrakeTask
+from .tasks import TASKS, BrakeTask, Outcome
 
 FLEET_OPTIONS = ("initial_speed_kmh", "load", "setup", "initial_disc_temperature_C")
 RENDER_MODES = ["human", "rgb_array", "ansi"]
@@ -105,20 +105,21 @@ class BrakeCore:
         self.ended[index] = False
 
     def observe(self, rng: np.random.Generator) -> np.ndarray:
-        measured = self.fleet.measurements(rng)
-        parts = [
-            measured["speed_mps"][:, None],
-            measured["decel_mps2"][:, None],
-            measured["pressure_bar"],
-            measured["temperature_C"],
-            self.task.observe(measured),
-        ]
-        return np.concatenate(parts, axis=1).astype(np.float32)
+        fleet = self.fleet
+        # One draw per channel in a fixed order, always (zero noise included), so a seed's random
+        # stream does not depend on the noise settings: the sensor channels, then the distance.
+        draws = rng.standard_normal((self.n, fleet.n_measured_channels + 1))
+        # Filled in float64, then rounded once to the float32 of the observation space.
+        observation = np.empty((self.n, len(self.observation_names)))
+        measured = fleet.measure(draws, observation[:, : fleet.n_measured_channels])
+        self.task.observe(measured, observation[:, fleet.n_measured_channels :])
+        return observation.astype(np.float32)
 
     def step(self, actions: np.ndarray, rng: np.random.Generator, allow_ended: bool = False):
         """Advance every train one control step. Returns observations, rewards, terminated,
-        truncated and the info arrays (per train). Trains whose episode ended are refused unless
-        ``allow_ended`` (they are then simulated on, and their rewards mean nothing)."""
+        truncated and the task's :class:`Outcome` (for :meth:`info`). Trains whose episode ended
+        are refused unless ``allow_ended`` (they are then simulated on, and their rewards mean
+        nothing)."""
         if not allow_ended and self.ended.any():
             raise RuntimeError(
                 f"train(s) {np.flatnonzero(self.ended).tolist()} have no running episode: call reset() first"
@@ -128,30 +129,33 @@ class BrakeCore:
         truncated = ~outcome.terminated & (self.fleet.time_s >= self.config.max_episode_time_s - 1e-9)
         reward = sum(outcome.reward_terms.values())
         observation = self.observe(rng)
-        info = self.info(outcome)
         self.ended |= outcome.terminated | truncated
-        return observation, reward, outcome.terminated, truncated, info
+        return observation, reward, outcome.terminated, truncated, outcome
 
-    def info(self, outcome=None) -> dict[str, Any]:
-        info: dict[str, Any] = self.fleet.physical_state()
-        info.update(self.task.episode_info())
+    def info(self, outcome: Outcome | None = None, train: int | None = None) -> dict[str, Any]:
+        """The info of the last step (with the ``outcome`` it returned) or of a reset: arrays over
+        the trains, or with ``train`` that train's entries (numpy scalars and per-disc rows, the
+        reward terms as floats)."""
+        info: dict[str, Any] = self.fleet.physical_state(train)
+        info.update(self.task.episode_info(train))
         episodes = self.fleet.episodes
-        info["peak_jerk_mps3"] = episodes.peak_jerk_mps3.copy()
-        info["peak_friction_temperature_C"] = episodes.peak_friction_temperature_C.copy()
-        info["initial_speed_mps"] = episodes.initial_speed_mps.copy()
+        entries = (
+            ("peak_jerk_mps3", episodes.peak_jerk_mps3),
+            ("peak_friction_temperature_C", episodes.peak_friction_temperature_C),
+            ("initial_speed_mps", episodes.initial_speed_mps),
+        )
+        if train is None:
+            info.update((name, values.copy()) for name, values in entries)
+        else:
+            info.update((name, values[train]) for name, values in entries)
         if outcome is not None:
-            info["reward_terms"] = outcome.reward_terms
-            info["is_success"] = outcome.success & outcome.terminated
+            if train is None:
+                info["reward_terms"] = outcome.reward_terms
+                info["is_success"] = outcome.success & outcome.terminated
+            else:  # the reward terms last, as in every single-train info so far
+                info["is_success"] = outcome.success[train] & outcome.terminated[train]
+                info["reward_terms"] = {name: float(values[train]) for name, values in outcome.reward_terms.items()}
         return info
-
-
-def _train_info(info: Mapping[str, Any], i: int) -> dict[str, Any]:
-    """Train ``i``'s entries of a batched info dict: numpy scalars (``np.float64`` is a float) and
-    per-disc rows."""
-    single = {key: value[i] for key, value in info.items() if not isinstance(value, dict)}
-    if "reward_terms" in info:
-        single["reward_terms"] = {name: float(array[i]) for name, array in info["reward_terms"].items()}
-    return single
 
 
 class BrakeEnv(gym.Env):
@@ -177,7 +181,7 @@ class BrakeEnv(gym.Env):
         super().reset(seed=seed)
         self.core.reset(self._index, self.np_random, options)
         observation = self.core.observe(self.np_random)[0]
-        info = _train_info(self.core.info(), 0)
+        info = self.core.info(train=0)
         if self._dashboard is not None:
             self._dashboard.clear()
         self._record(observation, info)
@@ -189,8 +193,8 @@ class BrakeEnv(gym.Env):
         action = np.asarray(action, dtype=np.float64)
         if action.shape != self.action_space.shape:
             raise ValueError(f"action shape {action.shape} does not match the action space {self.action_space.shape}")
-        observation, reward, terminated, truncated, info = self.core.step(action[None, :], self.np_random)
-        info = _train_info(info, 0)
+        observation, reward, terminated, truncated, outcome = self.core.step(action[None, :], self.np_random)
+        info = self.core.info(outcome, train=0)
         self._record(observation[0], info)
         if self.render_mode == "human":
             self.render()
@@ -266,7 +270,8 @@ class BrakeVectorEnv(VectorEnv):
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions shape {actions.shape} does not match the action space {self.action_space.shape}")
-        observation, reward, terminated, truncated, info = self.core.step(actions, self._rng, allow_ended=not self.autoreset)
+        observation, reward, terminated, truncated, outcome = self.core.step(actions, self._rng, allow_ended=not self.autoreset)
+        info = self.core.info(outcome)
         ended = terminated | truncated
         if self.autoreset and ended.any():
             index = np.flatnonzero(ended)

@@ -30,6 +30,16 @@ class Outcome:
     success: np.ndarray  # meaningful where terminated
 
 
+def _copies(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The arrays copied (some are the task's state, which the next step changes)."""
+    return {name: values.copy() for name, values in arrays.items()}
+
+
+def _of_train(arrays: dict[str, np.ndarray], train: int) -> dict[str, Any]:
+    """Train ``train``'s entries: numpy scalars, which hold their value."""
+    return {name: values[train] for name, values in arrays.items()}
+
+
 class BrakeTask:
     """Base class: a task draws its episode parameters, adds observation columns and judges."""
 
@@ -47,15 +57,16 @@ class BrakeTask:
     def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         """Draw this task's episode parameters for trains ``index`` (after the fleet restarted)."""
 
-    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
-        """The extra observation columns (N, len(extra_observations))."""
-        return np.zeros((self.n, 0))
+    def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
+        """Write the extra observation columns into ``out`` (N, len(extra_observations)), from
+        the measured channels (:meth:`TrainFleet.measure`)."""
 
     def judge(self) -> Outcome:
         raise NotImplementedError
 
-    def episode_info(self) -> dict[str, np.ndarray]:
-        """Task quantities for ``info`` (per train)."""
+    def episode_info(self, train: int | None = None) -> dict[str, Any]:
+        """Task quantities for ``info``: arrays over the trains (copies), or with ``train`` that
+        train's numbers (numpy scalars)."""
         return {}
 
     def _jerk_term(self) -> np.ndarray:
@@ -97,11 +108,12 @@ class StationStop(BrakeTask):
         needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, np.inf), where=to_go > 0)
         return np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2)
 
-    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
-        to_go = self.distance_to_go_m() + measured["distance_noise_m"]
+    def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
+        to_go = out[:, 0]
+        np.add(self.distance_to_go_m(), measured["distance_noise_m"], out=to_go)
         speed = np.maximum(measured["speed_mps"], 0.0)
         needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, MAX_REQUIRED_DECELERATION_MPS2), where=to_go > 0)
-        return np.stack([to_go, np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2)], axis=1)
+        np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2, out=out[:, 1])
 
     def stop_error_m(self) -> np.ndarray:
         """Position minus mark: positive past the mark."""
@@ -111,26 +123,33 @@ class StationStop(BrakeTask):
         config, fleet = self.config, self.fleet
         weights = config.reward
         error = self.stop_error_m()
-        self.overran |= ~fleet.standstill & (error > config.overrun_limit_m)
-        terminated = fleet.standstill | self.overran
-        success = fleet.standstill & ~self.overran & (np.abs(error) <= config.success_tolerance_m)
+        abs_error = np.abs(error)
+        moving = fleet.sim.moving
+        standstill = ~moving
+        self.overran |= moving & (error > config.overrun_limit_m)
+        terminated = standstill | self.overran
+        success = standstill & ~self.overran & (abs_error <= config.success_tolerance_m)
         # Tracking the deceleration still needed, rather than rewarding only the final error,
         # gives a learning signal on every step and favours a steady, comfortable braking curve.
         tracking_error = np.abs(fleet.deceleration_mps2 - self.required_deceleration_mps2())
-        tracking = np.where(fleet.standstill, 0.0, -weights.tracking_per_mps2_s * tracking_error * fleet.control_step_s)
-        terminal_error = np.minimum(np.abs(error), 50.0)
-        accuracy = np.where(
-            terminated, weights.stop_success * success - weights.stop_error_per_m * terminal_error, 0.0
-        )
+        tracking = np.where(standstill, 0.0, -weights.tracking_per_mps2_s * tracking_error * fleet.control_step_s)
+        if terminated.any():
+            terminal_error = np.minimum(abs_error, 50.0)
+            accuracy = np.where(
+                terminated, weights.stop_success * success - weights.stop_error_per_m * terminal_error, 0.0
+            )
+        else:  # on most steps no episode ends: the same zeros without computing the terminal terms
+            accuracy = np.zeros(self.n)
         return Outcome({"tracking": tracking, "jerk": self._jerk_term(), "stop_accuracy": accuracy}, terminated, success)
 
-    def episode_info(self) -> dict[str, np.ndarray]:
-        return {
+    def episode_info(self, train: int | None = None) -> dict[str, Any]:
+        info = {
             "distance_to_go_m": self.distance_to_go_m(),
             "stop_error_m": self.stop_error_m(),
-            "mark_m": self.mark_m.copy(),
-            "overran": self.overran.copy(),
+            "mark_m": self.mark_m,
+            "overran": self.overran,
         }
+        return _copies(info) if train is None else _of_train(info, train)
 
 
 class DecelTracking(BrakeTask):
@@ -171,8 +190,8 @@ class DecelTracking(BrakeTask):
         level = self.level_mps2[np.arange(self.n), np.maximum(segment, 0)]
         return np.where(segment >= 0, level, 0.0)
 
-    def observe(self, measured: Mapping[str, np.ndarray]) -> np.ndarray:
-        return self.demand_mps2(self.fleet.time_s)[:, None]
+    def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
+        out[:, 0] = self.demand_mps2(self.fleet.time_s)
 
     def judge(self) -> Outcome:
         fleet = self.fleet
@@ -186,12 +205,13 @@ class DecelTracking(BrakeTask):
         terminated = fleet.standstill.copy()
         return Outcome({"tracking": tracking, "jerk": self._jerk_term()}, terminated, terminated.copy())
 
-    def episode_info(self) -> dict[str, np.ndarray]:
+    def episode_info(self, train: int | None = None) -> dict[str, Any]:
         time_s = np.maximum(self.fleet.time_s, self.fleet.control_step_s)
-        return {
-            "demand_mps2": self.demand_in_last_step.copy(),
+        info = {
+            "demand_mps2": self.demand_in_last_step,
             "mean_abs_tracking_error_mps2": self.absolute_error_integral / time_s,
         }
+        return _copies(info) if train is None else _of_train(info, train)
 
 
 class EmergencyStop(BrakeTask):
@@ -220,8 +240,9 @@ class EmergencyStop(BrakeTask):
         }
         return Outcome(terms, terminated, success)
 
-    def episode_info(self) -> dict[str, np.ndarray]:
-        return {"braking_distance_m": self.fleet.position_m.copy(), "overheated": self.overheated.copy()}
+    def episode_info(self, train: int | None = None) -> dict[str, Any]:
+        info = {"braking_distance_m": self.fleet.position_m, "overheated": self.overheated}
+        return _copies(info) if train is None else _of_train(info, train)
 
 
 TASKS: dict[str, type[BrakeTask]] = {task.config_name: task for task in (StationStop, DecelTracking, EmergencyStop)}
