@@ -620,10 +620,10 @@ class Simulator:
         """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
         slowing, zero at standstill)."""
         clamp_force = np.ascontiguousarray(self.clamp_force_N(self.pressure.pressure_bar), dtype=float)
-        if self.has_hooks:
+        if self.extra_forces or self.friction_modifiers:  # constant hooks too
             scale, extra = self._hook_arrays(self._context(self.time_s, self.disc, self.train, clamp_force))
         else:
-            scale, extra = np.ones(self.disc.shape[1:]), np.zeros(self.n_trains)
+            scale, extra = self._unit_friction_scale, self._no_extra_force_N
         out = np.empty(self.n_trains)
         kernel.deceleration_mps2(
             self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._constants, out
@@ -653,7 +653,7 @@ class NumpyReferenceSimulator(Simulator):
         """Friction force per disc and the train forces at one state."""
         plant = self.plant
         mu = plant.friction.bounded(disc[MU])
-        context = self._context(time_s, disc, train, clamp_force) if self.has_hooks else None
+        context = self._context(time_s, disc, train, clamp_force) if self.extra_forces or self.friction_modifiers else None
         effective = mu * self._friction_scale(context) if self.friction_modifiers else mu  # type: ignore[arg-type]
         friction_force = effective * clamp_force
         brake = brake_force_N(friction_force, plant.friction_radius_m, plant.wheel_radius_m)

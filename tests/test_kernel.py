@@ -145,6 +145,14 @@ class _ArrayForce:
         return self.value
 
 
+class _ConstantScale(_ArrayScale):
+    constant = True
+
+
+class _ConstantForce(_ArrayForce):
+    constant = True
+
+
 def _random_batch(plant, n, rng):
     shape = (n, *plant.disc_shape)
     return BatchConditions(
@@ -198,16 +206,21 @@ def test_stage_rates_match_the_numpy_reference_on_random_states(plant, with_hook
             np.testing.assert_allclose(got[row], expected[row], rtol=1e-12, atol=1e-12 * size, err_msg=name)
 
 
-def test_deceleration_matches_the_numpy_reference(plant):
+@pytest.mark.parametrize("constant", [False, True])
+def test_deceleration_matches_the_numpy_reference(plant, constant):
+    """Also with hooks that the kernel integrates as constants: the deceleration must see them."""
     rng = np.random.default_rng(11)
     n = 20
     conditions = _random_batch(plant, n, rng)
     cylinders = [BrakeCylinder(0.2, 0.8)] * n
     pressure = CommandedPressure(cylinders, plant.n_axles, 0.1, initial_pressure_bar=rng.uniform(0, 4.5, (n, 8)))
-    force = [_ArrayForce(rng.normal(0.0, 5e3, n))]
-    reference = NumpyReferenceSimulator(plant, conditions, pressure, 0.1, extra_forces=force)
-    compiled = Simulator(plant, conditions, pressure, 0.1, extra_forces=force)
+    force_class, scale_class = (_ConstantForce, _ConstantScale) if constant else (_ArrayForce, _ArrayScale)
+    hooks = dict(extra_forces=[force_class(rng.normal(0.0, 5e3, n))], friction_modifiers=[scale_class(rng.uniform(0.7, 1.2, n))])
+    reference = NumpyReferenceSimulator(plant, conditions, pressure, 0.1, **hooks)
+    compiled = Simulator(plant, conditions, pressure, 0.1, **hooks)
     np.testing.assert_allclose(compiled.deceleration_mps2(), reference.deceleration_mps2(), rtol=1e-13)
+    plain = Simulator(plant, conditions, pressure, 0.1)
+    assert not np.allclose(plain.deceleration_mps2(), compiled.deceleration_mps2())
 
 
 def _mixed_applications():
@@ -258,14 +271,6 @@ def test_fused_and_staged_paths_agree(vehicle, plant):
     staged = train_stops(vehicle, apps, draw=draw, friction_modifiers=[_ArrayScale(1.0)])
     for name in SUMMARY_FIELDS:
         np.testing.assert_allclose(getattr(staged, name), getattr(fused, name), rtol=1e-12, atol=0.0, err_msg=name)
-
-
-class _ConstantScale(_ArrayScale):
-    constant = True
-
-
-class _ConstantForce(_ArrayForce):
-    constant = True
 
 
 def test_constant_hooks_run_compiled_and_agree_with_the_staged_path(vehicle, plant):
