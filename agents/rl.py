@@ -6,6 +6,22 @@ Training runs N trains in one :class:`~brakegym.envs.BrakeVectorEnv` handed to S
 batch of trains, a progress bar and an optional wall-clock budget. A trained agent is a folder:
 ``model.zip``, ``vecnormalize.pkl`` (the observation statistics) and ``training.json`` (what
 produced it).
+
+Besides the algorithm's own, an entry may hold:
+
+``env_config``
+    overrides of the environment's config for training and evaluation during training (e.g.
+    reward weights); the environment's defaults are not touched, and stress tests run on them.
+``residual``
+    ``{base: pid, scale: s}``: the policy is a *residual* on the PID baseline (agents/pid.py): the
+    command sent is ``clip(pid + s * policy, -1, 1)``, and the policy observes the environment's
+    observation plus the PID's command. The PID gains are stored with the agent.
+``jerk_shaping``
+    ``{above_mps3: j0, weight_per_mps3: w}``: a training-only reward term ``-w * max(0, jerk - j0)``
+    per control step on the train's jerk, which penalises the *peak* jerk (the environment's own
+    jerk term is linear in |jerk| and so only penalises the total variation of the deceleration).
+    Applied to the evaluation trains of the training run too, so that the kept checkpoint is the
+    best on the objective trained for.
 """
 
 from __future__ import annotations
@@ -22,9 +38,12 @@ import yaml
 from brakegym import config as cfg
 from brakegym.stress import make_vector_env
 
-ALGORITHMS = ("ppo", "sac")
+ALGORITHMS = ("ppo", "sac", "ppo-residual")
 # Keys of the hyperparameter files that configure the set-up rather than the algorithm.
-SETUP_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "eval_freq_steps", "n_eval_episodes")
+SETUP_KEYS = (
+    "n_envs", "n_timesteps", "policy", "normalize", "eval_freq_steps", "n_eval_episodes",
+    "env_config", "residual", "jerk_shaping",
+)
 SHIPPED_POLICIES = Path(__file__).resolve().parent / "policies"
 
 
@@ -76,12 +95,103 @@ def _learning_rate(value: Any, where: str = "learning_rate") -> Any:
     return lambda progress_remaining: progress_remaining * initial
 
 
-def _vec_env(env_id: str, n_envs: int, seed: int, setup: str, env_config: dict[str, Any] | None):
+def _model_class(algo: str):
+    from stable_baselines3 import PPO, SAC
+
+    return {"ppo": PPO, "sac": SAC, "ppo-residual": PPO}[algo]
+
+
+def _residual_observation(observation: np.ndarray, base_action: np.ndarray) -> np.ndarray:
+    """What a residual policy observes: the environment's observation and the base command (all
+    control groups get the same PID command, so one column)."""
+    return np.concatenate([np.asarray(observation, dtype=np.float32), base_action[:, :1]], axis=1)
+
+
+def _residual_action(base_action: np.ndarray, policy_action: np.ndarray, scale: float) -> np.ndarray:
+    return np.clip(base_action + scale * np.asarray(policy_action, dtype=np.float32), -1.0, 1.0).astype(np.float32)
+
+
+def _wrappers():
+    """The SB3 VecEnv wrappers (defined on first use: SB3 is an optional dependency)."""
+    from gymnasium import spaces
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class ResidualPID(VecEnvWrapper):
+        """The policy's action is a correction to the PID's command, scaled by ``scale``."""
+
+        def __init__(self, venv: Any, gains: Any, scale: float):
+            from agents.pid import PIDController
+
+            self.brake_env = venv.env  # the BrakeVectorEnv inside SB3VecEnv
+            self.pid = PIDController(self.brake_env.config, self.brake_env.observation_names, gains)
+            self.scale = scale
+            low = np.append(venv.observation_space.low, -1.0).astype(np.float32)
+            high = np.append(venv.observation_space.high, 1.0).astype(np.float32)
+            super().__init__(venv, observation_space=spaces.Box(low, high, dtype=np.float32))
+            self.base_action = np.zeros((venv.num_envs, venv.action_space.shape[0]), dtype=np.float32)
+
+        def _mass(self) -> dict[str, np.ndarray]:
+            return {"mass_kg": self.brake_env.core.fleet.episodes.mass_kg}
+
+        def reset(self):
+            observation = self.venv.reset()
+            self.pid.reset(self._mass())
+            self.base_action = self.pid.act(observation)
+            return _residual_observation(observation, self.base_action)
+
+        def step_async(self, actions: np.ndarray) -> None:
+            self.venv.step_async(_residual_action(self.base_action, actions, self.scale))
+
+        def step_wait(self):
+            observation, reward, dones, infos = self.venv.step_wait()
+            ended = np.flatnonzero(dones)
+            previous = self.base_action
+            if len(ended):
+                self.pid.reset(self._mass(), ended)  # the restarted trains' new episodes
+            self.base_action = self.pid.act(observation)
+            for i in ended:
+                # The ended episode's last observation, with the command the PID gave before.
+                infos[i]["terminal_observation"] = _residual_observation(infos[i]["terminal_observation"][None], previous[i : i + 1])[0]
+            return _residual_observation(observation, self.base_action), reward, dones, infos
+
+    class JerkShaping(VecEnvWrapper):
+        """Training-only reward term: -weight * max(0, jerk - above) per control step."""
+
+        def __init__(self, venv: Any, above_mps3: float, weight_per_mps3: float):
+            inner = venv
+            while not hasattr(inner, "env"):
+                inner = inner.venv
+            self.fleet = inner.env.core.fleet
+            self.above_mps3, self.weight = float(above_mps3), float(weight_per_mps3)
+            super().__init__(venv)
+
+        def reset(self):
+            return self.venv.reset()
+
+        def step_wait(self):
+            observation, reward, dones, infos = self.venv.step_wait()
+            # The fleet's jerk is that of the step just taken (before any restart zeroes it).
+            excess = np.maximum(self.fleet.jerk_mps3 - self.above_mps3, 0.0)
+            return observation, (reward - self.weight * excess).astype(np.float32), dones, infos
+
+    return ResidualPID, JerkShaping
+
+
+def _vec_env(
+    env_id: str, n_envs: int, seed: int, setup: str, env_config: dict[str, Any] | None,
+    residual: dict[str, Any] | None = None, pid_gains: Any = None, jerk_shaping: dict[str, Any] | None = None,
+):
     from stable_baselines3.common.vec_env import VecMonitor
 
     from brakegym.envs.sb3 import SB3VecEnv
 
-    venv = VecMonitor(SB3VecEnv(make_vector_env(env_id, n_envs, setup, env_config, autoreset=True)))
+    ResidualPID, JerkShaping = _wrappers()
+    venv = SB3VecEnv(make_vector_env(env_id, n_envs, setup, env_config, autoreset=True))
+    if residual:
+        venv = ResidualPID(venv, pid_gains, float(residual["scale"]))
+    if jerk_shaping:
+        venv = JerkShaping(venv, **jerk_shaping)
+    venv = VecMonitor(venv)
     venv.seed(seed)
     return venv
 
@@ -125,9 +235,11 @@ def train(
     hyperparameters: str | Path | None = None,
     progress_bar: bool = True,
 ) -> Path:
-    """Train ``algo`` on ``env_id``; write the agent folder ``out_dir`` and return it."""
+    """Train ``algo`` on ``env_id``; write the agent folder ``out_dir`` and return it.
+
+    ``env_config`` is merged over the hyperparameter entry's ``env_config`` (both override the
+    environment's defaults for training only)."""
     _torch_single_thread()
-    from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -138,18 +250,31 @@ def train(
     n_envs = int(hyper["n_envs"])
     steps = int(total_timesteps if total_timesteps is not None else float(hyper["n_timesteps"]))
     normalize = dict(hyper.get("normalize") or {})
+    training_env_config = {**(hyper.get("env_config") or {}), **(env_config or {})}
+    residual = hyper.get("residual")
+    if algo == "ppo-residual" and not residual:
+        raise cfg.ConfigError(f"{algo}: the hyperparameter entry for {short_env_id(env_id)} needs residual: {{base: pid, scale: ...}}")
+    pid_gains = None
+    if residual:
+        if residual.get("base") != "pid" or not float(residual.get("scale", 0)) > 0:
+            raise cfg.ConfigError(f"residual = {residual}: need base: pid and a positive scale")
+        from agents.pid import load_pid_config
+
+        pid_gains = load_pid_config()
+    wrapping = {"residual": residual, "pid_gains": pid_gains, "jerk_shaping": hyper.get("jerk_shaping")}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
 
-    venv = VecNormalize(_vec_env(env_id, n_envs, seed, setup, env_config), **normalize)
+    venv = VecNormalize(_vec_env(env_id, n_envs, seed, setup, training_env_config, **wrapping), **normalize)
     eval_env = VecNormalize(
-        _vec_env(env_id, min(int(hyper.get("n_eval_episodes", 64)), 128), seed + 10_000, setup, env_config),
+        _vec_env(
+            env_id, min(int(hyper.get("n_eval_episodes", 64)), 128), seed + 10_000, setup, training_env_config, **wrapping
+        ),
         training=False,
         norm_reward=False,
         norm_obs=normalize.get("norm_obs", True),
     )
-    model_class = {"ppo": PPO, "sac": SAC}[algo]
-    model = model_class(hyper["policy"], venv, seed=seed, verbose=0, device="cpu", **algo_kwargs)
+    model = _model_class(algo)(hyper["policy"], venv, seed=seed, verbose=0, device="cpu", **algo_kwargs)
     callbacks = [
         EvalCallback(
             eval_env,
@@ -169,6 +294,8 @@ def train(
     wall_s = time.monotonic() - started
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
+    budget = f" --time-budget-min {time_budget_s / 60:g}" if time_budget_s is not None else ""
+    explicit_steps = f" --timesteps {steps}" if total_timesteps is not None else ""
     meta = {
         "algo": algo,
         "env": short_env_id(env_id),
@@ -179,17 +306,27 @@ def train(
         "time_budget_s": time_budget_s,
         "wall_time_s": round(wall_s, 1),
         "hyperparameters": hyper,
-        "env_config": env_config or {},
+        "env_config": training_env_config,
         "machine": platform.platform(),
-        "command": f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed} --timesteps {steps} --out {out}",
+        "command": f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed}{explicit_steps}{budget} --out {out}",
     }
+    if residual:
+        meta["residual"] = {**residual, "pid_gains": pid_gains.model_dump()}
     (out / "training.json").write_text(json.dumps(meta, indent=2))
     best = out / "best"
     if (best / "best_model.zip").is_file():
         # The evaluation callback's best checkpoint, made an agent folder of its own (the one to
         # ship: chosen on evaluation trains, not on the stress test's).
         (best / "best_model.zip").replace(best / "model.zip")
-        (best / "training.json").write_text(json.dumps({**meta, "checkpoint": "best by evaluation reward"}, indent=2))
+        evaluations = np.load(out / "eval" / "evaluations.npz")
+        rewards = evaluations["results"].mean(axis=1)
+        k = int(np.argmax(rewards))
+        checkpoint = {
+            "checkpoint": "best by evaluation reward",
+            "checkpoint_step": int(evaluations["timesteps"][k]),
+            "checkpoint_eval_reward": float(rewards[k]),
+        }
+        (best / "training.json").write_text(json.dumps({**meta, **checkpoint}, indent=2))
     return out
 
 
@@ -199,25 +336,43 @@ class PolicyController:
 
     def __init__(self, agent_dir: str | Path):
         _torch_single_thread()
-        from stable_baselines3 import PPO, SAC
-
         folder = Path(agent_dir)
         meta_path = folder / "training.json"
         if not meta_path.is_file():
             raise FileNotFoundError(f"{folder}: not an agent folder (no training.json)")
         self.meta = json.loads(meta_path.read_text())
-        model_class = {"ppo": PPO, "sac": SAC}[self.meta["algo"]]
-        self.model = model_class.load(folder / "model.zip", device="cpu")
+        self.model = _model_class(self.meta["algo"]).load(folder / "model.zip", device="cpu")
         import pickle
 
         with open(folder / "vecnormalize.pkl", "rb") as handle:
             self.normalizer = pickle.load(handle)  # VecNormalize without its env: the statistics
         self.name = f"{self.meta['algo']}:{folder.name}"
+        self.residual = self.meta.get("residual")
+        self.base = None
+
+    def for_env(self, env: Any) -> "PolicyController":
+        """Bind to a batched environment (a residual policy builds its PID base for it, with the
+        gains it was trained with)."""
+        if self.residual:
+            from agents.pid import PIDConfig, PIDController
+
+            gains = PIDConfig.model_validate(self.residual["pid_gains"])
+            self.base = PIDController(env.config, env.observation_names, gains)
+        return self
 
     def reset(self, info: dict[str, Any]) -> None:
-        """The policy keeps no state between steps."""
+        """The policy keeps no state between steps; a residual policy's PID base does."""
+        if self.residual:
+            if self.base is None:
+                raise RuntimeError("a residual policy needs for_env(env) before reset()")
+            self.base.reset(info)
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        observation = self.normalizer.normalize_obs(np.asarray(observation, dtype=np.float32))
-        actions, _ = self.model.predict(observation, deterministic=True)
+        observation = np.asarray(observation, dtype=np.float32)
+        if self.residual:
+            base_action = self.base.act(observation)
+            observation = _residual_observation(observation, base_action)
+        actions, _ = self.model.predict(self.normalizer.normalize_obs(observation), deterministic=True)
+        if self.residual:
+            return _residual_action(base_action, actions, float(self.residual["scale"]))
         return actions

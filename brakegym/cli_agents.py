@@ -4,8 +4,9 @@
     brakegym evaluate  success rate and task metric of a controller over scattered episodes
     brakegym stress    the stress-test table per speed band, worst episodes, figure, JSON
 
-Agents are named ``pid`` (agents/pid.py with configs/agents/pid.yaml), ``ppo`` / ``sac`` (the
-policy shipped in agents/policies/ for the environment) or the path of an agent folder written by
+Agents are named ``pid`` (agents/pid.py with configs/agents/pid.yaml), ``ppo`` / ``sac`` /
+``ppo-residual`` (the policy shipped in agents/policies/ for the environment; ``ppo-residual`` is a
+PPO policy that corrects the PID's command) or the path of an agent folder written by
 ``brakegym train``. These commands need the repository's ``agents`` package (installed with it).
 """
 
@@ -38,6 +39,10 @@ def _bands(text: str) -> list[float]:
     return edges
 
 
+# Agent ids of the policies shipped in agents/policies/<task>_<id with _ for ->.
+SHIPPED_AGENTS = ("ppo", "sac", "ppo-residual")
+
+
 def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], Any]]:
     """(display name, factory env -> controller) for an agent argument."""
     if agent == "pid":
@@ -47,9 +52,9 @@ def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], An
         return "pid", lambda env: PIDController(env.config, env.observation_names, gains)
     from agents.rl import SHIPPED_POLICIES, PolicyController
 
-    if agent in ("ppo", "sac"):
+    if agent in SHIPPED_AGENTS:
         stem = ENVIRONMENTS[env_id][0].task_name
-        folder = SHIPPED_POLICIES / f"{stem}_{agent}"
+        folder = SHIPPED_POLICIES / f"{stem}_{agent.replace('-', '_')}"
         if not (folder / "training.json").is_file():
             raise cli.UsageError(
                 f"--agent {agent}: no shipped {agent} policy for {env_id} (looked for {folder}); "
@@ -58,12 +63,12 @@ def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], An
     else:
         folder = Path(agent)
         if not (folder / "training.json").is_file():
-            raise cli.UsageError(f"--agent {agent}: not pid, ppo, sac or an agent folder with training.json")
+            raise cli.UsageError(f"--agent {agent}: not pid, ppo, sac, ppo-residual or an agent folder with training.json")
     controller = PolicyController(folder)
     trained_on = "brakegym/" + controller.meta["env"]
     if trained_on != env_id:
         raise cli.UsageError(f"--agent {agent}: trained on {trained_on}, not {env_id}")
-    return agent if agent in ("ppo", "sac") else controller.name, lambda env: controller
+    return agent if agent in SHIPPED_AGENTS else controller.name, controller.for_env
 
 
 def _default_bands(env_id: str) -> list[float]:
@@ -149,7 +154,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--json", help="write the results as JSON")
 
     p = sub.add_parser("train", help="train a stable-baselines3 agent (ppo, sac) on an environment")
-    p.add_argument("--algo", choices=["ppo", "sac"], default="ppo")
+    p.add_argument("--algo", choices=["ppo", "sac", "ppo-residual"], default="ppo", help="ppo-residual: PPO correcting the PID's command")
     p.add_argument("--env", type=_env_id, default="brakegym/StationStop-v0")
     p.add_argument("--setup", default="mcs-75-25")
     p.add_argument("--seed", type=cli._non_negative_int("--seed"), default=0)
@@ -159,12 +164,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("evaluate", help="success rate and task metric of a controller")
-    p.add_argument("--agent", default="pid", help="pid, ppo, sac or an agent folder (default pid)")
+    p.add_argument("--agent", default="pid", help="pid, ppo, sac, ppo-residual or an agent folder (default pid)")
     common(p, 500)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("stress", help="stress-test controllers under friction scatter: table, worst episodes, figure")
-    p.add_argument("--agent", action="append", required=True, help="pid, ppo, sac or an agent folder; repeat to compare")
+    p.add_argument("--agent", action="append", required=True, help="pid, ppo, sac, ppo-residual or an agent folder; repeat to compare")
     p.add_argument("--bands", type=_bands, help="speed band edges in km/h, e.g. 40,60,80,100 (default: thirds of the range)")
     p.add_argument("--worst", type=cli._non_negative_int("--worst"), default=5, help="worst episodes to save (default 5)")
     p.add_argument("--out", default="out/stress", help="folder for the figure and worst episodes (default out/stress)")
