@@ -9,7 +9,8 @@ physics from the effect library, fit it, and say how sure that is.
 3. Name: every effect of the library is screened on a grid inside its bounds (all grid points of
    an effect simulated in one batch, each point's nuisance refitted by chord iterations), the
    best ``top_singles`` are fitted with ``scipy.optimize.least_squares`` from their best grid
-   point and polished by Gauss-Newton steps, and the pairs of the best ``pairs_from`` of them.
+   point and polished by Gauss-Newton steps (only effects whose screening beats the unmodified
+   model), and the pairs of the best ``pairs_from`` of them.
    A friction level is seen by the data only through the product with each recording's friction
    factor; its evidence is that the factors sit off 1 together, beyond their scatter. Each fitted
    candidate is judged by
@@ -61,6 +62,7 @@ GRID_POINTS_1D = 8  # per parameter of a one-parameter effect (even: the middle 
 # the no-effect value, is no start); 3 per parameter for two, 2 for three
 MAX_FAILED_UNITS_SCREENED = 4
 SCREEN_CHORD_ITERATIONS = 3
+SCREEN_MIN_GAIN = 1.0  # effective chi^2 a screened effect must gain to be fitted in full
 CHANNEL_NAMES = {SPEED: "speed", DECEL: "decel", DISC_TEMPERATURE: "T_disc"}
 
 # What separates two candidates that the data cannot tell apart.
@@ -355,8 +357,12 @@ class Diagnoser:
             )
             return candidate
 
+        # An effect whose best screened point does not beat the unmodified model has its optimum at
+        # (or next to) its no-effect value: fitting it in full costs the most (several effects run
+        # their hooks in Python at every RK4 stage) and can only confirm that.
+        promising = [e for e in order if best_start[e][0] < chi2_base - SCREEN_MIN_GAIN]
         singles: list[Candidate] = []
-        for effect_id in order[: self.top_singles]:
+        for effect_id in promising[: self.top_singles]:
             _, fixed, theta, nuisance = best_start[effect_id]
             fit = problem.fit([effect_id], np.concatenate([theta, nuisance]), fixed=fixed, max_iterations=8)
             singles.append(judge((effect_id,), fit))
@@ -436,7 +442,7 @@ class Diagnoser:
             )
             candidates_out.append(candidate.report)
         screened_out = {
-            effect_id: {"chi2_eff_profiled": round(best_start[effect_id][0], 1), "fitted": effect_id in {c.effect_ids[0] for c in singles}}
+            effect_id: {"chi2_eff_profiled": round(float(best_start[effect_id][0]), 1), "fitted": effect_id in {c.effect_ids[0] for c in singles}}
             for effect_id in order
         }
 
@@ -460,6 +466,7 @@ class Diagnoser:
             "unexplained": unexplained["text"] if unexplained else None,
             "unexplained_fit": unexplained,
             "screening": screened_out,
+            "chi2_eff_unmodified": round(float(chi2_base), 1),
             "effective_sample_share": {CHANNEL_NAMES[c]: round(v, 4) for c, v in self.channel_shares.items()},
             "trains_simulated": problem.simulations,
         }
