@@ -308,7 +308,10 @@ class EffectConfig(_Strict):
 
 class EffectSet(_Strict):
     """A set of effects that modify the nominal model (``configs/effects/``): usable in the
-    simulator and the environments through ``brakegym.recordings.effects.load_effects``."""
+    simulator through ``brakegym.recordings.effects.load_effects`` and ``apply_effects`` (or
+    ``replay_batch(recordings, effects)``). The environments do not take effect sets yet: effects
+    whose values depend on the train (a gradient's force on its mass) would have to be applied
+    afresh at every reset."""
 
     name: str
     description: str = ""

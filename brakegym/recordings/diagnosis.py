@@ -509,8 +509,8 @@ def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
 
 def write_effect_set(report: dict[str, Any], path: str | Path, dataset_name: str) -> Path:
     """Write the selected effects of a diagnosis report as an effect set (``configs/effects``
-    schema, validated on the way out), so that the modified model runs in the simulator and the
-    environments: ``load_effects(path)``. The 95 % intervals go along as a comment. With nothing
+    schema, validated on the way out), so that the modified model runs in the simulator:
+    ``load_effects(path)``, then ``replay_batch`` or ``apply_effects``. The 95 % intervals go along as a comment. With nothing
     selected the set is empty: the nominal model."""
     import yaml
 
