@@ -23,6 +23,12 @@ from ..physics import BrakeCylinder, draw_friction, draw_running_resistance
 from ..simulator import MU, POSITION, SPEED, T_DISC, T_FRIC, BatchConditions, CommandedPressure, Simulator
 from .config import BrakeEnvConfig
 
+# What info reports per disc, in this order: consecutive rows of the simulator's packed disc state,
+# so that one slice takes them all.
+REPORTED_DISC_STATES = slice(MU, T_DISC + 1)
+if (T_FRIC, T_DISC) != (MU + 1, MU + 2):
+    raise ImportError(f"brakegym.envs expects mu, T_fric, T_disc as consecutive disc states, not rows {MU, T_FRIC, T_DISC}")
+
 
 @dataclass
 class Episodes:
@@ -112,6 +118,8 @@ class TrainFleet:
         # Rows of the (discs, N) temperature layout that are measured; a slice when all are, so
         # that measuring copies nothing first.
         self._observed_rows = slice(None) if config.observed_temperatures == "all" else self.observed_discs
+        # Columns of measure(): speed, deceleration, pressure per axle, observed temperatures.
+        self.n_measured_channels = 2 + axles + len(self.observed_discs)
         noise = config.sensor_noise
         self._noise_per_channel = np.concatenate(
             [
@@ -261,11 +269,6 @@ class TrainFleet:
         """(N, discs), the friction-surface temperature T_fric."""
         return self.sim.to_external(self.sim.disc[T_FRIC]) - KELVIN
 
-    @property
-    def n_measured_channels(self) -> int:
-        """Columns of :meth:`measure`: speed, deceleration, pressure per axle, observed temperatures."""
-        return 2 + self.plant.n_axles + len(self.observed_discs)
-
     def measure(self, draws: np.ndarray, out: np.ndarray) -> dict[str, np.ndarray]:
         """The sensor channels with noise, written into ``out`` (N, :attr:`n_measured_channels`):
         speed, deceleration, cylinder pressures (N, axles) and the observed disc temperatures
@@ -295,17 +298,18 @@ class TrainFleet:
         Arrays over the trains (copies), or with ``train`` that train's entries: numpy scalars and
         per-axle or per-disc rows (copies), without building the arrays of all trains first."""
         sim, n, pressure = self.sim, self.n_trains, self.pressure
+        # mu, T_fric and T_disc (consecutive rows of the packed disc state) in one copy:
+        # (3, N, discs) over the trains, (3, discs) for one train.
+        per_disc = sim.disc[REPORTED_DISC_STATES].reshape(3, -1, n)
         if train is None:
             per_train = per_axle = operator.methodcaller("copy")
-            per_disc = sim.to_external
+            per_disc = per_disc.transpose(0, 2, 1).copy()
         else:
             per_train = operator.itemgetter(train)  # a numpy scalar holds its value, not a view
             per_axle = lambda values: values[train].copy()  # noqa: E731
-            per_disc = lambda internal: internal.reshape(-1, n)[:, train].copy()  # noqa: E731
-        friction_C = per_disc(sim.disc[T_FRIC])
-        friction_C -= KELVIN
-        disc_C = per_disc(sim.disc[T_DISC])
-        disc_C -= KELVIN
+            per_disc = per_disc[:, :, train].copy()
+        per_disc[1:] -= KELVIN
+        mu, friction_C, disc_C = per_disc
         return {
             "time_s": per_train(self.time_s),
             "speed_mps": per_train(sim.train[SPEED]),
@@ -313,7 +317,7 @@ class TrainFleet:
             "deceleration_mps2": per_train(self.deceleration_mps2),
             "cylinder_pressure_bar": per_axle(pressure.pressure_bar),
             "command_bar": per_axle(pressure.command_bar),
-            "mu": per_disc(sim.disc[MU]),
+            "mu": mu,
             "friction_temperature_C": friction_C,
             "disc_temperature_C": disc_C,
             "mass_kg": per_train(self.episodes.mass_kg),

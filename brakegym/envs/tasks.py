@@ -21,6 +21,15 @@ from .core import TrainFleet, _as_batch
 MAX_REQUIRED_DECELERATION_MPS2 = 3.0
 
 
+def _stopping_deceleration_mps2(speed_mps: np.ndarray, distance_m: np.ndarray, out: np.ndarray) -> None:
+    """v^2 / (2 distance), the constant deceleration that stops within ``distance_m``, into
+    ``out``: capped at MAX_REQUIRED_DECELERATION_MPS2, and that cap where the distance is not
+    positive (at or past the mark)."""
+    out.fill(MAX_REQUIRED_DECELERATION_MPS2)
+    np.divide(speed_mps**2, 2.0 * distance_m, out=out, where=distance_m > 0)
+    np.minimum(out, MAX_REQUIRED_DECELERATION_MPS2, out=out)
+
+
 @dataclass
 class Outcome:
     """The task's verdict after a control step, arrays of length N."""
@@ -103,17 +112,15 @@ class StationStop(BrakeTask):
 
     def required_deceleration_mps2(self) -> np.ndarray:
         """v^2 / (2 distance to go): the constant deceleration that would stop on the mark."""
-        to_go = self.distance_to_go_m()
-        speed = self.fleet.speed_mps
-        needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, np.inf), where=to_go > 0)
-        return np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2)
+        needed = np.empty(self.n)
+        _stopping_deceleration_mps2(self.fleet.speed_mps, self.distance_to_go_m(), out=needed)
+        return needed
 
     def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
         to_go = out[:, 0]
         np.add(self.distance_to_go_m(), measured["distance_noise_m"], out=to_go)
         speed = np.maximum(measured["speed_mps"], 0.0)
-        needed = np.divide(speed**2, 2.0 * to_go, out=np.full(self.n, MAX_REQUIRED_DECELERATION_MPS2), where=to_go > 0)
-        np.minimum(needed, MAX_REQUIRED_DECELERATION_MPS2, out=out[:, 1])
+        _stopping_deceleration_mps2(speed, to_go, out=out[:, 1])
 
     def stop_error_m(self) -> np.ndarray:
         """Position minus mark: positive past the mark."""
@@ -198,11 +205,11 @@ class DecelTracking(BrakeTask):
         # The demand that held during the step just taken (the one observed before it).
         demand = self.demand_mps2(fleet.time_s - fleet.control_step_s)
         error = np.abs(fleet.deceleration_mps2 - demand)
-        moving_part = ~fleet.standstill
+        moving_part = fleet.sim.moving
         self.absolute_error_integral += np.where(moving_part, error * fleet.control_step_s, 0.0)
         self.demand_in_last_step = demand
         tracking = np.where(moving_part, -self.config.reward.tracking_per_mps2_s * error * fleet.control_step_s, 0.0)
-        terminated = fleet.standstill.copy()
+        terminated = fleet.standstill
         return Outcome({"tracking": tracking, "jerk": self._jerk_term()}, terminated, terminated.copy())
 
     def episode_info(self, train: int | None = None) -> dict[str, Any]:
@@ -232,8 +239,9 @@ class EmergencyStop(BrakeTask):
         self.overheated |= fleet.hottest_friction_temperature_C > config.disc_temperature_limit_C
         travelled = fleet.position_m - self.previous_position_m
         self.previous_position_m = fleet.position_m.copy()
-        terminated = fleet.standstill | self.overheated
-        success = fleet.standstill & ~self.overheated
+        standstill = fleet.standstill
+        terminated = standstill | self.overheated
+        success = standstill & ~self.overheated
         terms = {
             "distance": -config.reward.distance_per_km * travelled / 1000.0,
             "overheat": np.where(self.overheated, -config.reward.overheat, 0.0),
