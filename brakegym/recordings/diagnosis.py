@@ -27,8 +27,8 @@ physics from the effect library, fit it, and say how sure that is.
    was dropped: a friction level's evidence lies in the friction-factor prior rows, a few percent
    of the set's error however large the level, and the size rule already guards relevance.) A pair is selected over
    its best single by the same rules.
-4. Model / show: parameters with 95 % intervals (Gauss-Newton covariance, inflated for the
-   autocorrelation), residual RMS and stop-distance errors before and after; figures and a
+4. Model / show: parameters with 95 % intervals (the wider of the Gauss-Newton interval, inflated
+   for the autocorrelation, and the jackknife over recordings with Student's t), residual RMS and stop-distance errors before and after; figures and a
    Markdown report (:mod:`.diagnosis_report`).
 5. Unexplained: with no effect selected but a residual beyond noise, a data-driven description
    (:func:`.locate.describe_unexplained`).
@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+from scipy import stats
 
 from .effects import EFFECTS, STANDARD_GRAVITY_MPS2, FrictionLevel
 from .fitting import FIT_CHANNELS, FitProblem, FitResult
@@ -143,6 +144,7 @@ class Candidate:
     chi2_eff: float
     delta_bic: float
     heldout_sse: np.ndarray  # per recording, effective
+    leave_one_out_steps: np.ndarray  # (recordings, effect parameters)
     report: dict[str, Any] = field(default_factory=dict)
     relevant: bool = True
 
@@ -227,17 +229,16 @@ class Diagnoser:
         return chi2, nuisances
 
     # -- held out --------------------------------------------------------------------------
-    def _heldout(self, fit: FitResult) -> tuple[np.ndarray, np.ndarray]:
+    def _heldout(self, fit: FitResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals of each recording predicted with the effect parameters fitted without it
         (one weighted Gauss-Newton step from the full fit), and their effective SSE per
         recording (data rows and its friction-factor prior)."""
         problem = self.problem
         p = len(fit.free)
         r = fit.residual
-        if p == 0:
-            held = r.copy()
-        else:
-            held = r.copy()
+        held = r.copy()
+        steps = np.zeros((problem.n, p))  # each recording's leave-out change of the effect parameters
+        if p:
             projected, blocks = [], []
             for i in range(problem.n):
                 rows = np.flatnonzero(problem.recording_of == i)
@@ -253,10 +254,11 @@ class Diagnoser:
                 others = total - projected[i] + 1e-9 * np.eye(p)
                 step = np.linalg.solve(others, a.T @ (w * r[rows]))
                 held[rows] = r[rows] + a @ step
+                steps[i] = step
         # The held-out recording's friction-factor prior row counts: a set-wide friction shift
         # shows up there (its own factor refitted far from 1), not in its data rows.
         sse = np.array([np.sum((self.weights * held**2)[problem.recording_of == i]) for i in range(problem.n)])
-        return held, sse
+        return held, sse, steps
 
     # -- per-channel summaries --------------------------------------------------------------
     def _rms(self, residual: np.ndarray) -> dict[str, float]:
@@ -274,7 +276,7 @@ class Diagnoser:
             return {"rms_m": float("nan"), "max_abs_m": float("nan")}
         return {"rms_m": round(float(np.sqrt(np.mean(errors**2))), 2), "max_abs_m": round(float(np.max(np.abs(errors))), 2)}
 
-    def _ci95(self, fit: FitResult) -> dict[str, list[float]]:
+    def _ci95(self, fit: FitResult, leave_one_out_steps: np.ndarray) -> dict[str, list[float]]:
         p = len(fit.free)
         out: dict[str, list[float]] = {}
         if p:
@@ -287,8 +289,16 @@ class Diagnoser:
                 covariance = np.linalg.pinv(normal)[:p, :p] * variance
             except np.linalg.LinAlgError:
                 covariance = np.full((p, p), np.nan)
+            # The jackknife over recordings: the Gauss-Newton covariance sees only the noise of the
+            # samples, not what varies between recordings and no nuisance absorbs (each
+            # application's running-resistance draw shifts a fitted gradient); the spread of the
+            # leave-one-recording-out estimates does. The wider of the two, with Student's t.
+            steps = leave_one_out_steps
+            n = self.problem.n
+            jackknife = (n - 1) / n * np.sum((steps - steps.mean(axis=0)) ** 2, axis=0) if n > 2 else np.zeros(p)
+            quantile = float(stats.t.ppf(0.975, n - 1)) if n > 2 else 1.96
             for j, parameter in enumerate(fit.free):
-                half = 1.96 * math.sqrt(max(covariance[j, j], 0.0))
+                half = max(1.96 * math.sqrt(max(covariance[j, j], 0.0)), quantile * math.sqrt(jackknife[j]))
                 value = fit.x[j]
                 out[parameter.name] = [
                     round(float(max(value - half, parameter.spec.lower)), 5),
@@ -306,7 +316,7 @@ class Diagnoser:
         self.n_eff_total = float(np.sum(self.weights[problem.channel_of >= 0]))
         log_n = math.log(max(self.n_eff_total, 2.0))
         chi2_base = self._chi2(baseline.residual)
-        _, base_sse = self._heldout(baseline)
+        _, base_sse, _ = self._heldout(baseline)
         profile = problem.profiler(baseline.jacobian[:, : 3 * problem.n])
 
         # Screening: every grid point of an effect in one batch, each point's nuisance refitted.
@@ -349,8 +359,8 @@ class Diagnoser:
         def judge(effect_ids: tuple[str, ...], fit: FitResult) -> Candidate:
             chi2 = self._chi2(fit.residual)
             p = len(fit.free) + len(fit.fixed)
-            _, sse = self._heldout(fit)
-            candidate = Candidate(effect_ids, fit, chi2, chi2 - chi2_base + p * log_n, sse)
+            _, sse, steps = self._heldout(fit)
+            candidate = Candidate(effect_ids, fit, chi2, chi2 - chi2_base + p * log_n, sse, steps)
             candidate.relevant = all(
                 _relevant(eid, {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, self.context)
                 for eid in effect_ids
@@ -424,12 +434,12 @@ class Diagnoser:
         candidates_out = []
         for candidate in sorted(singles + pairs, key=lambda c: c.delta_bic):
             fit = candidate.fit
-            held, _ = self._heldout(fit)
+            held, _, _ = self._heldout(fit)
             candidate.report.update(
                 {
                     "effects": list(candidate.effect_ids),
                     "parameters": {k: round(v, 5) for k, v in fit.parameters.items()},
-                    "ci95": self._ci95(fit),
+                    "ci95": self._ci95(fit, candidate.leave_one_out_steps),
                     "rms_before": base_rms,
                     "rms_after": self._rms(fit.residual),
                     "heldout_rms_before": base_heldout_rms,
