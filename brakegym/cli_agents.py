@@ -153,7 +153,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--batch", type=cli._positive_int("--batch"), default=500, help="trains per batch (default 500)")
         p.add_argument("--json", help="write the results as JSON")
 
-    p = sub.add_parser("train", help="train a stable-baselines3 agent (ppo, sac) on an environment")
+    p = sub.add_parser("train", help="train a stable-baselines3 agent (ppo, sac, ppo-residual) on an environment")
     p.add_argument("--algo", choices=["ppo", "sac", "ppo-residual"], default="ppo", help="ppo-residual: PPO correcting the PID's command")
     p.add_argument("--env", type=_env_id, default="brakegym/StationStop-v0")
     p.add_argument("--setup", default="mcs-75-25")
