@@ -11,12 +11,10 @@ Errors in arguments, configs or data files end with a message and exit status 2 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from .. import config as cfg
@@ -48,22 +46,10 @@ def _step(text: str) -> float:
 
 
 def _write_json(path: str | None, payload: dict[str, Any]) -> None:
-    if path is None:
-        return
-    target = Path(path)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(json.dumps(payload, indent=2, allow_nan=True, default=_plain) + "\n")
-    except OSError as exc:
-        raise ValueError(f"--json {path}: cannot write ({exc.strerror})") from exc
+    # The command line's one JSON writer (imported here: brakegym.cli imports this module).
+    from ..cli import _write_json as write_json
 
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+    write_json(path, payload)
 
 
 def _read_table(path: str, option: str) -> pd.DataFrame:
