@@ -526,13 +526,14 @@ def write_effect_set(report: dict[str, Any], path: str | Path, dataset_name: str
 
     from .. import config as cfg
 
+    path = Path(path)
     parameters = report["parameters"]
     effects = []
     for effect_id in report["selected"]:
         names = [spec.name for spec in EFFECTS[effect_id].parameters]
         effects.append({"id": effect_id, "parameters": {name: float(parameters[name]) for name in names}})
     document = {
-        "name": f"diagnosed_{dataset_name}",
+        "name": path.stem,  # a config's name is its file's stem
         "description": f"effects selected by brakegym diagnose on {dataset_name}",
         "effects": effects,
     }
@@ -541,7 +542,6 @@ def write_effect_set(report: dict[str, Any], path: str | Path, dataset_name: str
     header = [f"# Written by brakegym diagnose from {dataset_name}: {len(report['selected'])} effect(s) selected."]
     if chosen is not None:
         header += [f"# {name}: 95 % interval {low:g} .. {high:g}" for name, (low, high) in chosen["ci95"].items()]
-    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(header) + "\n" + yaml.safe_dump(document, sort_keys=False))
     return path
