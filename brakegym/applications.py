@@ -141,6 +141,7 @@ class StopSummary:
     onset_distance_m: np.ndarray  # s_2 of Eq. 3: 95 % clamp-force point to standstill
     mu_s: np.ndarray  # (B, discs), Eq. 3 per disc
     mu_s_eff: np.ndarray  # (B,), Eq. 15 averaged over distance
+    # Peaks and end values up to the end of the run: each train's standstill, or until_time_s.
     peak_friction_temperature_C: np.ndarray  # (B, discs)
     peak_disc_temperature_C: np.ndarray  # (B, discs)
     initial_kinetic_energy_J: np.ndarray
@@ -173,34 +174,44 @@ def run_stops(
     progress: Callable[[int], None] | None = None,
 ) -> StopSummary:
     """Step ``sim`` until every train stands still (or until ``until_time_s``), calling
-    ``command(sim)`` before each step to set the brake commands."""
+    ``command(sim)`` before each step to set the brake commands.
+
+    Run to standstill, each train is held from its own standstill on (``sim.hold_standing_trains``
+    for the run): its summary (peak temperatures, heat stored and given to the air) ends at its
+    stop, whatever the other trains of the batch do. Run to ``until_time_s``, standing trains go on
+    cooling until then."""
     metrics = StopMetrics(sim, nominal_clamp_force_N)
     recorder = _TrajectoryRecorder(sim, record_every) if record_every else None
     initial_energy = 0.5 * sim.mass_kg * sim.train[SPEED] ** 2
     initial_heat = _stored_heat_J(sim)
     stopped_before = int((~sim.moving).sum())
-    while True:
-        if until_time_s is None:
-            if not sim.moving.any():
+    held_before = sim.hold_standing_trains
+    sim.hold_standing_trains = until_time_s is None
+    try:
+        while True:
+            if until_time_s is None:
+                if not sim.moving.any():
+                    break
+            elif sim.time_s >= until_time_s - 1e-9 * sim.step_s:
                 break
-        elif sim.time_s >= until_time_s - 1e-9 * sim.step_s:
-            break
-        if sim.time_s > max_time_s and sim.moving.any():  # standing trains may cool for longer
-            unfinished = np.flatnonzero(sim.moving)
-            raise RuntimeError(
-                f"{len(unfinished)} application(s) (first: index {unfinished[0]}) still moving after "
-                f"{max_time_s} s: the brake command never stops them"
-            )
-        command(sim)
-        sim.step()
-        metrics.update(sim)
-        if recorder:
-            recorder.after_step(sim)
-        if progress is not None:
-            stopped = int((~sim.moving).sum())
-            if stopped > stopped_before:
-                progress(stopped - stopped_before)
-                stopped_before = stopped
+            if sim.time_s > max_time_s and sim.moving.any():  # standing trains may cool for longer
+                unfinished = np.flatnonzero(sim.moving)
+                raise RuntimeError(
+                    f"{len(unfinished)} application(s) (first: index {unfinished[0]}) still moving after "
+                    f"{max_time_s} s: the brake command never stops them"
+                )
+            command(sim)
+            sim.step()
+            metrics.update(sim)
+            if recorder:
+                recorder.after_step(sim)
+            if progress is not None:
+                stopped = int((~sim.moving).sum())
+                if stopped > stopped_before:
+                    progress(stopped - stopped_before)
+                    stopped_before = stopped
+    finally:
+        sim.hold_standing_trains = held_before
 
     stop_distance = sim.train[POSITION].copy()
     return StopSummary(

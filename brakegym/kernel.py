@@ -532,6 +532,7 @@ def _finish_tile(
     disc_rates,
     train_rates,
     moving,
+    hold_standing,
     disc_end,
     train_end,
     stop_fraction,
@@ -540,7 +541,8 @@ def _finish_tile(
 ):
     """RK4's weighted sum of the four stages' rates into ``disc_end`` (6, S) and ``train_end``
     (6, T), the stop inside the step and the mu bound, for the trains ``tile_start`` ...
-    ``tile_start + n_tile - 1``; sets their ``stop_fraction``, ``stop_time_s`` and ``moving1``."""
+    ``tile_start + n_tile - 1``; sets their ``stop_fraction``, ``stop_time_s`` and ``moving1``.
+    With ``hold_standing`` a train that stood still at the start of the step keeps its state."""
     n_slots = n_discs * n_tile
     sixth = step_s / 6.0
     for row in range(N_DISC_STATES):
@@ -581,6 +583,20 @@ def _finish_tile(
     mu_min, mu_max = parameters[MU_MIN], parameters[MU_MAX]
     for slot in range(n_slots):
         disc_end[MU, slot] = bounded_mu(disc_end[MU, slot], mu_min, mu_max)
+    if hold_standing:
+        for t in range(n_tile):
+            if not moving[t]:
+                _hold_train(t, n_discs, n_tile, disc_start, train_start, disc_end, train_end)
+
+
+@numba.njit(**JIT_OPTIONS)
+def _hold_train(t, n_discs, n_tile, disc_start, train_start, disc_end, train_end):
+    """Train ``t`` of the tile ends the step as it started it."""
+    for row in range(N_DISC_STATES):
+        for disc in range(n_discs):
+            disc_end[row, disc * n_tile + t] = disc_start[row, disc * n_tile + t]
+    for row in range(N_TRAIN_STATES):
+        train_end[row, t] = train_start[row, t]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -623,6 +639,7 @@ def fused_rk4_steps(
     disc0,
     train0,
     moving0,
+    hold_standing,
     cylinders,
     stage_pressure_bar,
     discs,
@@ -644,7 +661,9 @@ def fused_rk4_steps(
     step. Step n writes the states ``discs[n % 2]`` (two buffers, or one for a single step), ``trains[n % 2]``, ``movings[n % 2]``, and
     the last step the stop fraction (nan if none) and the clamp forces at its start and end into
     ``clamp_N`` (2, A, 1, B); sets ``stop_time_s`` of the trains that stop. Time is
-    ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it."""
+    ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it. With
+    ``hold_standing`` a train standing still at the start of a step keeps its state (a tile of
+    standing trains is not integrated at all)."""
     n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -715,6 +734,20 @@ def fused_rk4_steps(
                     for t in range(n_tile):
                         clamp_N[0, axle, 0, tile_start + t] = axle_clamp_N[0, axle * n_tile + t]
                         clamp_N[1, axle, 0, tile_start + t] = axle_clamp_N[2, axle * n_tile + t]
+            if hold_standing:
+                tile_moves = False
+                for t in range(n_tile):
+                    tile_moves = tile_moves or moving[t]
+                if not tile_moves:
+                    # Every train of the tile held: the stage rates are not needed.
+                    for t in range(n_tile):
+                        stop_fraction[tile_start + t] = np.nan
+                        moving_out[tile_start + t] = False
+                    _scatter_discs(disc_start, tile_start, n_tile, disc_out)
+                    for row in range(N_TRAIN_STATES):
+                        for t in range(n_tile):
+                            train_out[row, tile_start + t] = train_start[row, t]
+                    continue
 
             # Stage s is evaluated at the state advanced by stage s - 1's rates, with the clamp
             # force of the start (s = 0), the middle (1, 2) or the end (3) of the step.
@@ -736,7 +769,7 @@ def fused_rk4_steps(
                 )  # fmt: skip
             _finish_tile(
                 parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
-                train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving_out,
+                train_rates, moving, hold_standing, disc_end, train_end, stop_fraction, stop_time_s, moving_out,
             )  # fmt: skip
             _scatter_discs(disc_end, tile_start, n_tile, disc_out)
             for row in range(N_TRAIN_STATES):
@@ -820,6 +853,7 @@ def finish_rk4_step(
     disc0,
     train0,
     moving0,
+    hold_standing,
     disc_stage_rates,
     train_stage_rates,
     disc1,
@@ -829,7 +863,7 @@ def finish_rk4_step(
     stop_time_s,
 ):
     """The end of a staged step: the four stages' rates (4, 6, A, k, B) and (4, 6, B) combined
-    as in :func:`fused_rk4_steps`, with the same stop interpolation."""
+    as in :func:`fused_rk4_steps`, with the same stop interpolation and ``hold_standing``."""
     n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -853,7 +887,7 @@ def finish_rk4_step(
             moving[t] = moving0[tile_start + t]
         _finish_tile(
             parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
-            train_rates, moving, disc_end, train_end, stop_fraction, stop_time_s, moving1,
+            train_rates, moving, hold_standing, disc_end, train_end, stop_fraction, stop_time_s, moving1,
         )  # fmt: skip
         _scatter_discs(disc_end, tile_start, n_tile, disc1)
         for row in range(N_TRAIN_STATES):
@@ -911,7 +945,7 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
             pressure.copy(), pressure.copy(),
         )  # fmt: skip
         fused_rk4_steps(
-            parameters, 0, steps, 0.1, per_disc, constants, per_disc, np.zeros(1), disc, train, moving, cylinders,
+            parameters, 0, steps, 0.1, per_disc, constants, per_disc, np.zeros(1), disc, train, moving, False, cylinders,
             np.zeros((3, 1, n_axles)),
             discs, trains, movings, stop_fraction, stop_time, np.zeros((2, n_axles, 1, 1)),
         )  # fmt: skip
@@ -922,7 +956,7 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
             train_rates[stage],
         )  # fmt: skip
     finish_rk4_step(
-        parameters, 0.0, 0.1, disc, train, moving, disc_rates, train_rates, discs[0], trains[0], movings[0],
+        parameters, 0.0, 0.1, disc, train, moving, False, disc_rates, train_rates, discs[0], trains[0], movings[0],
         stop_fraction, stop_time,
     )  # fmt: skip
     deceleration_mps2(parameters, disc, train, moving, clamp, per_disc, per_train, constants, np.empty(1))
