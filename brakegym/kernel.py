@@ -454,15 +454,19 @@ def _rates_of_tile(
     for slot in range(n_slots):
         evolving_slots += _choose_integer(friction_evolves(clamp_N[slot], sliding_of_slot[slot], min_sliding), 1, 0)
     if evolving_slots > 0:
+        # Into a scratch array of its own (free again: its rates were copied above), not into
+        # the row of disc_rates, for the same reason as the loop above.
+        mu_rate = slot_work[5]
+        friction_temperature = disc[T_FRIC]
         for slot in range(n_slots):
             mu = bounded_mu(disc[MU, slot], mu_min, mu_max)
             clamp = clamp_N[slot]
             v_fric = sliding_of_slot[slot]
-            mu_rate = friction_rate_per_s(
+            rate = friction_rate_per_s(
                 mu,
                 clamp,
                 v_fric,
-                disc[T_FRIC, slot],
+                friction_temperature[slot],
                 clamp_term[slot],
                 power_coefficient[slot],
                 power_exponent,
@@ -473,7 +477,9 @@ def _rates_of_tile(
                 reference_power,
                 reference_temperature,
             )
-            disc_rates[stage, MU, slot] = select(friction_evolves(clamp, v_fric, min_sliding), mu_rate, 0.0)
+            mu_rate[slot] = select(friction_evolves(clamp, v_fric, min_sliding), rate, 0.0)
+        for slot in range(n_slots):
+            disc_rates[stage, MU, slot] = mu_rate[slot]
     else:
         for slot in range(n_slots):
             disc_rates[stage, MU, slot] = 0.0
