@@ -309,9 +309,9 @@ class EffectConfig(_Strict):
 class EffectSet(_Strict):
     """A set of effects that modify the nominal model (``configs/effects/``): usable in the
     simulator through ``brakegym.recordings.effects.load_effects`` and ``apply_effects`` (or
-    ``replay_batch(recordings, effects)``). The environments do not take effect sets yet: effects
-    whose values depend on the train (a gradient's force on its mass) would have to be applied
-    afresh at every reset."""
+    ``replay_batch(recordings, effects)``), and in the environments through their ``effects``
+    config field (``gymnasium.make(id, config={"effects": name_or_path})``), where they are applied
+    afresh to each train's episode."""
 
     name: str
     description: str = ""

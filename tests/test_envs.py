@@ -367,3 +367,83 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
     wrong = dataclasses.replace(base, running_resistance=RunningResistance(2500.0, np.array([30.0, 60.0]), 5.0))
     with pytest.raises(ValueError, match="running resistance B_N_per_mps: one value or one per train"):
         run(wrong, np.arange(n))
+
+
+# ------------------------------------------------------------------------------------------------
+# Effect sets: the model a diagnosis found (or any effect set), in the environments
+
+QUIET = {"sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}}
+G = 9.80665
+
+
+def _effect_set(tmp_path, name, effects):
+    lines = [f"name: {name}", "effects:"]
+    for effect_id, parameters in effects.items():
+        shown = ", ".join(f"{key}: {value}" for key, value in parameters.items())
+        lines.append(f"  - id: {effect_id}\n    parameters: {{{shown}}}")
+    path = tmp_path / f"{name}.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def _coasting_deceleration(effects, steps=5, seed=3):
+    """Deceleration of 4 trains (loads drawn) after ``steps`` control steps with the brakes released."""
+    env = StationStopVectorEnv(num_envs=4, config={**QUIET, "effects": effects}, autoreset=False)
+    env.reset(seed=seed)
+    for _ in range(steps):
+        env.step(-np.ones(env.action_space.shape, np.float32))
+    fleet = env.core.fleet
+    return fleet.deceleration_mps2.copy(), fleet.episodes.mass_kg.copy()
+
+
+def test_a_gradient_effect_set_adds_g_times_the_gradient_to_every_train_whatever_its_mass():
+    nominal, mass = _coasting_deceleration(None)
+    downhill, _ = _coasting_deceleration("example_gradient")  # configs/effects/: -5.8 permil
+    assert len(set(mass)) > 1  # the loads drawn differ, so the gradient's force does too
+    # Coasting: only the gradient (and running resistance at a speed a few mm/s apart) differs.
+    np.testing.assert_allclose(downhill - nominal, G * -5.8 / 1000, rtol=0.01)
+
+
+def test_a_rotating_mass_effect_scales_the_coasting_deceleration(tmp_path):
+    nominal, _ = _coasting_deceleration(None)
+    heavier, _ = _coasting_deceleration(_effect_set(tmp_path, "inertia", {"rotating_mass": {"mass_factor": 0.1}}))
+    np.testing.assert_allclose(heavier / nominal, 1.0 / 1.1, rtol=1e-3)
+
+
+def test_sensor_effects_act_on_the_observation_only(tmp_path):
+    effects = _effect_set(
+        tmp_path, "sensors", {"speed_sensor_scale": {"scale": 1.03}, "temperature_sensor_lag": {"tau_s": 10.0}}
+    )
+    config = {**QUIET, "effects": effects, "observed_temperatures": "instrumented"}
+    env, nominal = StationStopEnv(config=config), StationStopEnv(config=QUIET)
+    names = env.unwrapped.observation_names
+    speed, decel, to_go, temperature = (names.index(n) for n in ("speed_mps", "decel_mps2", "distance_to_go_m", "temperature_C_1"))
+    for e in (env, nominal):
+        e.reset(seed=5, options={"initial_speed_kmh": 80.0})
+    brake = np.full(env.action_space.shape, 0.5, np.float32)
+    for _ in range(60):
+        observation, _, _, _, info = env.step(brake)
+        _, _, _, _, nominal_info = nominal.step(brake)
+    # The train itself is the nominal one: sensor effects change no physics.
+    assert info["position_m"] == nominal_info["position_m"]
+    assert observation[speed] == np.float32(1.03 * info["speed_mps"])
+    assert observation[decel] == np.float32(1.03 * info["deceleration_mps2"])
+    # Odometry runs 3 % long, so the measured distance to go is short by 3 % of the distance run.
+    assert observation[to_go] == pytest.approx(-info["stop_error_m"] - 0.03 * info["position_m"], abs=1e-3)
+    # A braking disc heats: the lagging sensor reads below the surface, by about tau x its rise rate.
+    true_C = info["friction_temperature_C"][0]
+    assert 0.0 < true_C - observation[temperature] < 10.0 * 20.0
+
+
+def test_effect_sets_needing_the_staged_path_pass_the_env_checker():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("brakegym/StationStop-v0", config={"effects": "example_wet_pads_heavy_train"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_an_unknown_effect_set_is_refused_naming_the_field():
+    with pytest.raises(ConfigError, match="field 'effects' = 'no_such_set'"):
+        StationStopEnv(config={"effects": "no_such_set"})

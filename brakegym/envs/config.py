@@ -71,6 +71,9 @@ class BrakeEnvConfig(cfg._Strict):
     initial_disc_temperature_C: Range
     carry_over_thermal_state: bool  # next episode starts with the discs as the last one ended
     reward: RewardWeights
+    # An effect set (the name of one in configs/effects/ or a YAML path, e.g. what `brakegym
+    # diagnose --effects-out` writes): physics the nominal model leaves out, in every train.
+    effects: str | None = None
 
     @model_validator(mode="after")
     def _timing(self) -> "BrakeEnvConfig":
@@ -188,6 +191,13 @@ def environment_config(name: str, user: Mapping[str, Any] | str | Path | None = 
     unknown = [load for load in env_config.loads if load not in vehicle.loads]
     if unknown:
         raise cfg.ConfigError(f"{source}: field 'loads' = {unknown}: not loads of vehicle {vehicle.name!r} ({sorted(vehicle.loads)})")
+    if env_config.effects is not None:
+        from ..recordings.effects import load_effects  # the recordings package needs pandas: only here
+
+        try:
+            load_effects(env_config.effects)
+        except (cfg.ConfigError, ValueError) as exc:
+            raise cfg.ConfigError(f"{source}: field 'effects' = {env_config.effects!r}: {exc}") from None
     if env_config.instrumented_disc > vehicle.n_discs:
         raise cfg.ConfigError(
             f"{source}: field 'instrumented_disc' = {env_config.instrumented_disc}: vehicle "

@@ -11,6 +11,7 @@ exists once, vectorised.
 
 from __future__ import annotations
 
+import dataclasses
 import operator
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -51,12 +52,26 @@ def _as_batch(value: Any, n: int, name: str) -> np.ndarray:
     return array.copy()
 
 
+def _write_rows(batch: BatchConditions, index: np.ndarray, rows: BatchConditions) -> None:
+    """The applications ``index`` of ``batch`` (arrays over the batch, in place) set to ``rows``."""
+    for field in dataclasses.fields(BatchConditions):
+        getattr(batch, field.name)[index] = getattr(rows, field.name)
+
+
 class TrainFleet:
     """N trains of ``config.vehicle`` with their brakes, stepped together.
 
     Actions are per control group in [-1, 1] and map linearly to 0..``max_cylinder_pressure_bar``;
     values outside [-1, 1] are clipped to it (as the action space documents), NaN or a wrong shape
     is refused.
+
+    With an effect set (``config.effects``) every train runs the modified model: the effects are
+    applied to each train's episode (its mass, drawn at reset, sets a gradient's force and the
+    adhesion limit; a running-resistance effect replaces the nominal coefficients, the set-up's
+    drawn scatter of A still added), and the sensor effects act on what :meth:`measure` reports: a
+    speed-sensor scale on the speed, the deceleration derived from it and the odometry
+    (:meth:`odometry_m`), a temperature-sensor lag on the disc temperatures (exact first-order lag
+    for a temperature linear within the control step, the sensor at rest with its disc at reset).
     """
 
     def __init__(self, config: BrakeEnvConfig, n_trains: int):
@@ -67,14 +82,14 @@ class TrainFleet:
         self.vehicle: cfg.Vehicle = cfg.load("vehicles", config.vehicle)
         self.material = cfg.load("materials", self.vehicle.material)
         self.setup = cfg.load("setups", config.setup)
-        self.plant = train_plant(self.vehicle)
+        self.nominal_plant = train_plant(self.vehicle)
         self.cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", config.actuation))
         self.max_pressure_bar = self.vehicle.max_cylinder_pressure_bar
         self.vehicle_loads = list(self.vehicle.loads)
         self.control_step_s = config.control_step_s
         self.substeps = config.substeps
 
-        axles = self.plant.n_axles
+        axles = self.nominal_plant.n_axles
         if config.control_groups == "train":
             self.group_of_axle = np.zeros(axles, dtype=np.int64)
         elif config.control_groups == "bogie":
@@ -85,7 +100,7 @@ class TrainFleet:
 
         self.pressure = CommandedPressure([self.cylinder] * n_trains, axles, config.physics_step_s)
         ambient_K = self.vehicle.ambient_temperature_C + KELVIN
-        disc_shape = (n_trains, *self.plant.disc_shape)
+        disc_shape = (n_trains, *self.nominal_plant.disc_shape)
         # Trains start at standstill until their first reset gives them a speed.
         idle = BatchConditions(
             mass_kg=np.full(n_trains, self.vehicle.mass_kg(config.loads[0])),
@@ -97,7 +112,31 @@ class TrainFleet:
             initial_disc_temperature_K=np.full(disc_shape, ambient_K),
             ambient_temperature_K=np.full(n_trains, ambient_K),
         )
-        self.sim = Simulator(self.plant, idle, self.pressure, step_s=config.physics_step_s)
+        if config.effects is None:
+            self.effects: list = []
+            self.plant = self.nominal_plant
+            self.sim = Simulator(self.plant, idle, self.pressure, step_s=config.physics_step_s)
+        else:
+            from ..recordings.effects import load_effects  # the recordings package needs pandas: only here
+
+            self.effects = load_effects(config.effects)
+            # Each train's episode draws without effects (its mass, drawn resistance), from which
+            # the effects' hooks are rebuilt at every restart.
+            self.episode_conditions = dataclasses.replace(
+                idle, **{f.name: np.array(getattr(idle, f.name)) for f in dataclasses.fields(BatchConditions)}
+            )
+            model = self._effected(idle)
+            # A running-resistance effect's B and C hold for every episode: the plant carries them.
+            self.plant = model.plant
+            self.sim = Simulator(
+                self.plant, model.conditions, self.pressure, step_s=config.physics_step_s,
+                extra_forces=model.extra_forces, friction_modifiers=model.friction_modifiers,
+                nominal_running_resistance=self.nominal_plant.running_resistance,
+            )  # fmt: skip
+        # The sensor effects (see the class docstring); None where they are absent, which keeps
+        # measure() free of them.
+        self.speed_scale: np.ndarray | None = None
+        self.temperature_lag_s: np.ndarray | None = None
         self.episodes = Episodes(
             step=np.zeros(n_trains, dtype=np.int64),
             load_index=np.zeros(n_trains, dtype=np.int64),
@@ -128,6 +167,30 @@ class TrainFleet:
                 np.full(len(self.observed_discs), noise.temperature_C),
             ]
         )
+        self._lagged_temperature_C = np.zeros((n_trains, len(self.observed_discs)))
+        self._true_temperature_C = np.zeros((n_trains, len(self.observed_discs)))
+        if self.effects:
+            self._set_sensors(model.sensors)
+
+    def _effected(self, conditions: BatchConditions):
+        """The effects applied to a batch of episode draws (an ``EffectedModel``)."""
+        from ..recordings.effects import RunningResistanceEffect, apply_effects
+
+        model = apply_effects(self.nominal_plant, conditions, self.effects)
+        if any(isinstance(effect, RunningResistanceEffect) for effect in self.effects):
+            # The effect sets the running resistance; each train still scatters around it.
+            drawn_deviation_N = np.asarray(conditions.running_resistance_A_N) - self.vehicle.running_resistance.A_N
+            model.conditions = dataclasses.replace(
+                model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn_deviation_N
+            )
+        return model
+
+    def _set_sensors(self, sensors) -> None:
+        n = self.n_trains
+        speed_scale = np.broadcast_to(np.asarray(sensors.speed_scale, dtype=float), (n,))
+        lag_s = np.broadcast_to(np.asarray(sensors.temperature_lag_s, dtype=float), (n,))
+        self.speed_scale = speed_scale.copy() if np.any(speed_scale != 1.0) else None
+        self.temperature_lag_s = lag_s[:, None].copy() if np.any(lag_s > 0.0) else None
 
     # -------------------------------------------------------------------------------------------
     def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
@@ -180,8 +243,19 @@ class TrainFleet:
             initial_disc_temperature_K=disc_K,
             ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + KELVIN),
         )
+        if self.effects:
+            # The restarted trains' own model, then every train's hooks from its current episode.
+            _write_rows(self.episode_conditions, index, conditions)
+            conditions = self._effected(conditions).conditions
+            model = self._effected(self.episode_conditions)
+            self.sim.extra_forces, self.sim.friction_modifiers = tuple(model.extra_forces), tuple(model.friction_modifiers)
+            self._set_sensors(model.sensors)
         self.sim.reset_trains(index, conditions)
         self.pressure.reset_trains(index, 0.0)
+        if self.temperature_lag_s is not None:
+            observed_C = self._observed_temperature_C()[index]
+            self._lagged_temperature_C[index] = observed_C
+            self._true_temperature_C[index] = observed_C
 
         episodes = self.episodes
         episodes.step[index] = 0
@@ -241,12 +315,32 @@ class TrainFleet:
         jerk = np.abs(self.deceleration_mps2 - previous_deceleration) / self.control_step_s
         self.jerk_mps3 = np.where(episodes.step == 1, 0.0, jerk)
         np.maximum(episodes.peak_jerk_mps3, self.jerk_mps3, out=episodes.peak_jerk_mps3)
+        if self.temperature_lag_s is not None:
+            self._lag_temperature_sensors()
         self.hottest_friction_temperature_C = sim.disc[T_FRIC].reshape(-1, self.n_trains).max(axis=0) - KELVIN
         np.maximum(
             episodes.peak_friction_temperature_C,
             self.hottest_friction_temperature_C,
             out=episodes.peak_friction_temperature_C,
         )
+
+    def _observed_temperature_C(self) -> np.ndarray:
+        """(N, observed discs), the true friction-surface temperatures the sensors see."""
+        return self.sim.disc[T_FRIC].reshape(-1, self.n_trains)[self._observed_rows].T - KELVIN
+
+    def _lag_temperature_sensors(self) -> None:
+        """tau dy/dt = u - y over the control step h, exact for u linear within it (as
+        :func:`brakegym.recordings.measurement.first_order_lag`):
+        y' = u' + a (y - u) - (u' - u) tau (1 - a) / h, a = exp(-h / tau); tau = 0 gives y' = u'."""
+        h, tau = self.control_step_s, self.temperature_lag_s
+        with np.errstate(divide="ignore"):
+            decay = np.exp(-h / tau)
+        new_C = self._observed_temperature_C()
+        change = new_C - self._true_temperature_C
+        self._lagged_temperature_C = new_C + decay * (self._lagged_temperature_C - self._true_temperature_C) - change * (
+            tau * (1.0 - decay) / h
+        )
+        self._true_temperature_C = new_C
 
     # -------------------------------------------------------------------------------------------
     @property
@@ -256,6 +350,11 @@ class TrainFleet:
     @property
     def position_m(self) -> np.ndarray:
         return self.sim.train[POSITION]
+
+    def odometry_m(self) -> np.ndarray:
+        """Distance travelled as the train's odometry counts it (a speed-sensor scale scales it)."""
+        position = self.sim.train[POSITION]
+        return position if self.speed_scale is None else self.speed_scale * position
 
     @property
     def standstill(self) -> np.ndarray:
@@ -281,8 +380,13 @@ class TrainFleet:
         temperature = slice(2 + axles, self.n_measured_channels)
         out[:, 0] = self.sim.train[SPEED]
         out[:, 1] = self.deceleration_mps2
+        if self.speed_scale is not None:  # the deceleration is derived from the speed sensor
+            out[:, :2] *= self.speed_scale[:, None]
         out[:, pressure] = self.pressure.pressure_bar
-        np.subtract(self.sim.disc[T_FRIC].reshape(-1, n)[self._observed_rows].T, KELVIN, out=out[:, temperature])
+        if self.temperature_lag_s is None:
+            np.subtract(self.sim.disc[T_FRIC].reshape(-1, n)[self._observed_rows].T, KELVIN, out=out[:, temperature])
+        else:
+            out[:, temperature] = self._lagged_temperature_C
         # true value + noise standard deviation * draw, for all channels in one go.
         out += draws[:, :-1] * self._noise_per_channel
         return {

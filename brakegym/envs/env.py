@@ -45,11 +45,17 @@ Reset options (``reset(options={...})``) fix what is otherwise drawn: ``initial_
 
 Physics: ``simulation_frequency_hz / policy_frequency_hz`` RK4 steps per control step (20 Hz and
 10 Hz by default). With ``carry_over_thermal_state`` the discs start each episode as the last one
-left them (consecutive stops heat them).
+left them (consecutive stops heat them). ``effects`` names an effect set (``configs/effects/`` or a
+YAML path, e.g. what ``brakegym diagnose --effects-out`` writes) that every train runs with: a
+gradient, a friction level, wet pads, ... applied afresh to each episode's train, and the sensor
+effects (speed-sensor scale, temperature-sensor lag) in the observation; see
+:class:`brakegym.envs.core.TrainFleet`. State-dependent effects (wet pads, fade, adhesion) run
+in Python at every RK4 stage, which slows a step several times.
 
 Version history
 ---------------
-- v0: initial release.
+- v0: initial release; the ``effects`` config field added later (default none: the same
+  episodes as before).
 """
 
 from __future__ import annotations

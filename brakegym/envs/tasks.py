@@ -117,8 +117,9 @@ class StationStop(BrakeTask):
         return needed
 
     def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
+        # As the train measures it: the mark's distance at the start less its odometry.
         to_go = out[:, 0]
-        np.add(self.distance_to_go_m(), measured["distance_noise_m"], out=to_go)
+        np.add(self.mark_m - self.fleet.odometry_m(), measured["distance_noise_m"], out=to_go)
         speed = np.maximum(measured["speed_mps"], 0.0)
         _stopping_deceleration_mps2(speed, to_go, out=out[:, 1])
 

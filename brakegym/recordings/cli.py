@@ -95,7 +95,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         from .diagnosis import write_effect_set
 
         path = write_effect_set(report, args.effects_out, Path(args.dataset_dir).name)
-        print(f"effect set: {path} (load it with brakegym.recordings.effects.load_effects)")
+        print(f"effect set: {path} (simulator: brakegym.recordings.effects.load_effects; environments: config effects={str(path)!r})")
     print(f"selected: {', '.join(report['selected']) or 'nothing'}")
     print(report["summary"])
     return 0
