@@ -17,7 +17,9 @@ truth, and whether the truth lies inside the reported 95 % interval.
 
 Usage: ``python benchmarks/bench_diagnosis.py --sets 20 --seed 1 [--recordings 8] [--json out.json]``.
 With ``--json`` each set's row is written as soon as it is done; an interrupted run (Ctrl-C)
-prints the summary of the sets finished so far.
+prints the summary of the sets finished so far. Runs with different seeds can go on side by side
+(one per core) and be summarized together:
+``python benchmarks/bench_diagnosis.py --summarize seed1.json seed2.json``.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ def run_set(index: int, seed: int, free: bool, offset: bool, args: argparse.Name
         hit = bool(set(truth) & set(selected))
     chosen = next((c for c in report["candidates"] if c["effects"] == selected), None) if selected else None
     return {
-        "index": index, "seed": seed, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
+        "index": index, "seed": seed, "recordings": args.recordings, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
         "selected": selected, "parameters": report["parameters"], "ci95": chosen["ci95"] if chosen else {},
         "indistinguishable": report["indistinguishable"], "hit": bool(hit), "seconds": round(time.time() - started, 1),
     }
@@ -95,19 +97,32 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
             errors = [abs(f - t) / max(abs(t), 1e-9) for t, f, _ in values]
             covered = sum(c for _, _, c in values)
             print(f"  {name:40s} n={len(values):3d}  median error {100 * float(np.median(errors)):5.1f} %  covered {covered}/{len(values)}")
-    print(f"\nlibrary: {', '.join(EFFECTS)}; {args.recordings} recordings per set; {len(rows)} sets in {seconds:.0f} s")
+    # Rows written before the count was recorded hold the default (--recordings).
+    counts = sorted({row.get("recordings", args.recordings) for row in rows})
+    shown = "/".join(str(c) for c in counts)
+    print(f"\nlibrary: {', '.join(EFFECTS)}; {shown} recordings per set; {len(rows)} sets, {seconds:.0f} s of diagnosis")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", type=int, required=True)
-    parser.add_argument("--seed", type=int, required=True)
+    parser.add_argument("--summarize", nargs="+", metavar="ROWS.json",
+                        help="summarize the rows that earlier runs wrote with --json, and run nothing")
+    parser.add_argument("--sets", type=int)
+    parser.add_argument("--seed", type=int)
     parser.add_argument("--recordings", type=int, default=8)
     parser.add_argument("--free-share", type=float, default=0.3, help="share of effect-free sets (default 0.3)")
     parser.add_argument("--top-singles", type=int, default=3)
     parser.add_argument("--pairs-from", type=int, default=2)
     parser.add_argument("--json", help="write every set's truth and verdict (after each set)")
     args = parser.parse_args()
+    if args.summarize:
+        rows = []
+        for path in args.summarize:
+            rows += json.loads(Path(path).read_text())
+        summarize(rows, args, sum(row["seconds"] for row in rows))
+        return
+    if args.sets is None or args.seed is None:
+        parser.error("--sets and --seed are required unless --summarize is given")
     rng = np.random.default_rng(args.seed)
     rows: list[dict[str, Any]] = []
     started = time.time()
