@@ -385,6 +385,8 @@ class Simulator:
         # What the compiled kernel integrates with when no hook takes part.
         self._unit_friction_scale = np.ones(self.disc.shape[1:])
         self._no_extra_force_N = np.zeros(n)
+        # The arrays of constant hooks, with the hook objects they were computed from.
+        self._constant_hooks: tuple[tuple, np.ndarray, np.ndarray] | None = None
 
     def reset_trains(self, index: np.ndarray, conditions: BatchConditions) -> None:
         """Restart the trains ``index`` from ``conditions`` (a batch of ``len(index)``), leaving
@@ -499,6 +501,23 @@ class Simulator:
             np.ascontiguousarray(np.broadcast_to(extra, (self.n_trains,))),
         )
 
+    def _step_hook_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The hooks as the compiled step takes them at the current state: the unit arrays
+        without hooks; constant hooks' arrays computed once for each set of hook objects (an
+        environment replaces them when it restarts trains), as they cannot depend on the state."""
+        if not (self.extra_forces or self.friction_modifiers):
+            return self._unit_friction_scale, self._no_extra_force_N
+        if self.has_hooks:
+            clamp_force = self.clamp_force_N(np.asarray(self.pressure.pressure_bar, dtype=float))
+            return self._hook_arrays(self._context(self.time_s, self.disc, self.train, clamp_force))
+        hooks = (*self.extra_forces, None, *self.friction_modifiers)
+        cached = self._constant_hooks
+        if cached is None or len(cached[0]) != len(hooks) or any(a is not b for a, b in zip(cached[0], hooks)):
+            clamp_force = self.clamp_force_N(np.asarray(self.pressure.pressure_bar, dtype=float))
+            scale, extra = self._hook_arrays(self._context(self.time_s, self.disc, self.train, clamp_force))
+            cached = self._constant_hooks = (hooks, scale, extra)
+        return cached[1], cached[2]
+
     @staticmethod
     def _pressures(source: PressureSource) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The stage pressures as the kernels take them: C-contiguous float arrays (no copy when
@@ -543,11 +562,7 @@ class Simulator:
         else:
             cylinders = self._no_cylinders
             stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
-        if self.extra_forces or self.friction_modifiers:
-            clamp_force = self.clamp_force_N(np.asarray(self.pressure.pressure_bar, dtype=float))
-            friction_scale, extra_force_N = self._hook_arrays(self._context(self.time_s, disc0, train0, clamp_force))
-        else:
-            friction_scale, extra_force_N = self._unit_friction_scale, self._no_extra_force_N
+        friction_scale, extra_force_N = self._step_hook_arrays()
         kernel.fused_rk4_steps(
             self._parameters, self.step_index, n_steps, self.step_s, self.power_coefficient, self._constants,
             friction_scale, extra_force_N, disc0, train0, moving0, self.hold_standing_trains, cylinders, stage_pressures,
@@ -626,10 +641,7 @@ class Simulator:
         """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
         slowing, zero at standstill)."""
         clamp_force = np.ascontiguousarray(self.clamp_force_N(self.pressure.pressure_bar), dtype=float)
-        if self.extra_forces or self.friction_modifiers:  # constant hooks too
-            scale, extra = self._hook_arrays(self._context(self.time_s, self.disc, self.train, clamp_force))
-        else:
-            scale, extra = self._unit_friction_scale, self._no_extra_force_N
+        scale, extra = self._step_hook_arrays()  # constant hooks too
         out = np.empty(self.n_trains)
         kernel.deceleration_mps2(
             self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._constants, out

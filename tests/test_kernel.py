@@ -437,3 +437,28 @@ def test_numpy_reference_cylinders_equal_the_compiled_ones(plant):
         python.stage_pressures_bar()
         python.advance()
         np.testing.assert_array_equal(compiled.pressure.pressure_bar, python.pressure_bar)
+
+
+def test_replaced_constant_hooks_take_effect(plant):
+    """The compiled path keeps the arrays of constant hooks between steps; hooks replaced on a
+    running simulator (an environment does so when it restarts trains) must be used at once."""
+    rng = np.random.default_rng(11)
+    conditions = _random_batch(plant, 3, rng)
+    conditions = BatchConditions(**{**conditions.__dict__, "initial_speed_mps": np.full(3, 20.0)})
+    pressure = CommandedPressure([BrakeCylinder(0.2, 0.8)] * 3, plant.n_axles, 0.1)
+    first, second = np.array([1000.0, -2000.0, 0.0]), np.array([5000.0, 3000.0, -4000.0])
+    sim = Simulator(plant, conditions, pressure, 0.1, extra_forces=(_ConstantForce(first),))
+    sim.step()
+    before = sim.deceleration_mps2()
+    sim.extra_forces = (_ConstantForce(second),)
+    after = sim.deceleration_mps2()
+    np.testing.assert_allclose(after - before, (second - first) / conditions.mass_kg, rtol=1e-9)
+    state = sim.train.copy()
+    sim.step()  # the step integrates the new force too: compare with a simulator built with it
+    fresh = Simulator(plant, conditions, CommandedPressure([BrakeCylinder(0.2, 0.8)] * 3, plant.n_axles, 0.1), 0.1,
+                      extra_forces=(_ConstantForce(first),))
+    fresh.step()
+    fresh.extra_forces = (_ConstantForce(second),)
+    np.testing.assert_array_equal(fresh.train, state)
+    fresh.step()
+    np.testing.assert_array_equal(fresh.train, sim.train)
