@@ -267,8 +267,21 @@ class PrescribedPressure:
         self.step_s = step_s
         self._t0 = start_time_s
         self._step = 0
+        # The last few pressures asked for: a step asks for its start, middle and end, the next
+        # starts where it ended, and observers ask for the current pressure again.
+        self._recent: dict[float, np.ndarray] = {}
 
     def _at(self, time_s: float) -> np.ndarray:
+        recent = self._recent.get(time_s)
+        if recent is None:
+            # Shared by every caller, which must not change it. (Not flagged read-only: numba
+            # types read-only arrays apart and would compile the kernels again for them.)
+            recent = self._recent[time_s] = self._interpolated(time_s)
+            if len(self._recent) > 4:
+                del self._recent[next(iter(self._recent))]
+        return recent
+
+    def _interpolated(self, time_s: float) -> np.ndarray:
         index = int(np.searchsorted(self.time_s, time_s, side="right")) - 1
         if index < 0:
             return self.trace_bar[0]
@@ -283,7 +296,8 @@ class PrescribedPressure:
 
     def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = self._t0 + self._step * self.step_s
-        return self._at(t), self._at(t + 0.5 * self.step_s), self._at(t + self.step_s)
+        # The end as the next step will compute its start, so that the two are the same number.
+        return self._at(t), self._at(t + 0.5 * self.step_s), self._at(self._t0 + (self._step + 1) * self.step_s)
 
     def advance(self) -> None:
         self._step += 1
