@@ -235,6 +235,12 @@ def _compiled(function):
 TRAINS_PER_TILE = 16
 
 
+# The copies between the batch and a tile index a view that starts at the tile's first train, not
+# the batch at ``tile_start + t``: LLVM cannot tell that ``tile_start + t`` is not negative, so
+# numba's wraparound of negative indices stays in the loop, lane by lane, and the copy runs as
+# scalar loads or stores. Indices from 0 never wrap, and the copy is one vector load and store.
+
+
 @numba.njit(**JIT_OPTIONS)
 def _gather_discs(states, tile_start, n_tile, tile):
     """Disc values (R, A, k, B) of the tile's trains into slots ``tile`` (R, A * k * T)."""
@@ -243,8 +249,9 @@ def _gather_discs(states, tile_start, n_tile, tile):
         for axle in range(n_axles):
             for disc in range(per_axle):
                 first = (axle * per_axle + disc) * n_tile
+                trains = states[row, axle, disc, tile_start : tile_start + n_tile]
                 for t in range(n_tile):
-                    tile[row, first + t] = states[row, axle, disc, tile_start + t]
+                    tile[row, first + t] = trains[t]
 
 
 @numba.njit(**JIT_OPTIONS)
@@ -254,16 +261,18 @@ def _scatter_discs(tile, tile_start, n_tile, states):
         for axle in range(n_axles):
             for disc in range(per_axle):
                 first = (axle * per_axle + disc) * n_tile
+                trains = states[row, axle, disc, tile_start : tile_start + n_tile]
                 for t in range(n_tile):
-                    states[row, axle, disc, tile_start + t] = tile[row, first + t]
+                    trains[t] = tile[row, first + t]
 
 
 @numba.njit(**JIT_OPTIONS)
 def _gather_trains(values, tile_start, n_tile, tile):
     """Train values (R, B) of the tile's trains into ``tile`` (R, T)."""
     for row in range(values.shape[0]):
+        trains = values[row, tile_start : tile_start + n_tile]
         for t in range(n_tile):
-            tile[row, t] = values[row, tile_start + t]
+            tile[row, t] = trains[t]
 
 
 @numba.njit(**JIT_OPTIONS)
