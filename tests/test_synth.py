@@ -33,7 +33,7 @@ def test_same_seed_gives_the_same_bytes_and_the_key_stays_apart(tmp_path):
     assert len(read_dataset(first.folder)) == 3
     key = json.loads(first.key_path.read_text())
     assert key["expected_selected"] == ["gradient", "wet_pads"]
-    assert key["effects"][0] == {"id": "gradient", "parameters": {"gradient_permil": -5.8}, "drawn": []}
+    assert {k: key["effects"][0][k] for k in ("id", "parameters", "drawn")} == {"id": "gradient", "parameters": {"gradient_permil": -5.8}, "drawn": []}
     assert key["effects"][1]["drawn"] == ["initial_loss", "drying_energy_MJ"]
     assert key["base_offset"] is None
 
@@ -84,6 +84,23 @@ def test_noise_levels_are_the_documented_ones_and_an_effect_keeps_the_campaign(t
         assert a.metadata == b.metadata
         np.testing.assert_array_equal(a.time_s[:20], b.time_s[:20])
         np.testing.assert_array_equal(a.pressures_bar[:20], b.pressures_bar[:20])
+
+
+def test_the_key_says_whether_an_effect_is_in_the_data(tmp_path):
+    # A fade whose onset lies above every temperature the discs reach changes nothing: the key
+    # records it as drawn but not expressed, and does not expect a diagnosis to select it.
+    cold = synthesize(tmp_path / "cold", 2, seed=5, effects=[EffectRequest("thermal_fade", {"onset_C": 590.0})]).key
+    imprint = cold["effects"][0]["imprint"]
+    assert not imprint["expressed"] and cold["expected_selected"] == []
+    assert max(imprint["max_change_over_noise"].values()) == 0.0
+    # A 6 permil gradient moves the odometry by metres: expressed, by far.
+    slope = synthesize(tmp_path / "slope", 2, seed=5, effects=[EffectRequest("gradient", {"gradient_permil": 6.0})]).key
+    assert slope["effects"][0]["imprint"]["expressed"] and slope["expected_selected"] == ["gradient"]
+    assert slope["effects"][0]["imprint"]["max_change_over_noise"]["position_m"] > 20.0
+    # In a pair, each effect's imprint is measured against the truth with the other one kept.
+    pair = synthesize(tmp_path / "pair", 2, seed=5, effects=[EffectRequest("gradient", {"gradient_permil": 6.0}),
+                                                             EffectRequest("thermal_fade", {"onset_C": 590.0})]).key
+    assert pair["expected_selected"] == ["gradient"]
 
 
 def test_base_offset_is_recorded_as_not_an_effect(tmp_path):

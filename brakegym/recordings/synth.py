@@ -91,6 +91,8 @@ SENSOR_NOISE = {
 }
 RESOLUTION = {TIME: 1e-3, SPEED: 1e-3, DECEL: 1e-3, DISC_TEMPERATURE: 1e-2, POSITION: 1e-3, "p_c_bar": 1e-3}
 MAX_EFFECTS = 2
+# An effect that moves no sample of any channel by this many noise sigmas is not in the data.
+IMPRINT_EXPRESSED_OVER_NOISE = 1.0
 
 
 @dataclass(frozen=True)
@@ -341,24 +343,8 @@ def synthesize(
         initial_disc_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
         ambient_temperature_K=np.array([a.ambient_C for a in applications]) + KELVIN,
     )
-    model = apply_effects(plant, conditions, chosen)
-    if any(isinstance(e, RunningResistanceEffect) for e in chosen):
-        # The effect sets the set's running resistance; each application still scatters around it.
-        model.conditions = dataclasses.replace(
-            model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + scatter_A
-        )
-
     cylinders = [BrakeCylinder.from_config(cfg.load("pneumatics", a.actuation)) for a in applications]
-    pressure = CommandedPressure(cylinders, plant.n_axles, TRUTH_STEP_S)
-    command = np.stack([a.axle_pressure_bar for a in applications])
-    command_time = np.array([a.command_time_s for a in applications])
-    schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
-    end_after_stop = np.array([a.standstill_s for a in applications])
-
-    def finished(sim) -> bool:
-        return bool(not sim.moving.any() and np.all(sim.time_s >= sim.stop_time_s + end_after_stop))
-
-    grid = simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
+    model, grid = _simulate_truth(plant, conditions, chosen, scatter_A, applications, cylinders)
 
     recordings = []
     truth_rows = []
@@ -386,13 +372,21 @@ def synthesize(
             }
         )
 
+    imprints = [
+        _imprint(recordings, model, grid, _simulate_truth(plant, conditions, [e for e in chosen if e is not effect], scatter_A, applications, cylinders),
+                 decel_source, noise_scale)
+        for effect in chosen
+    ]
+    for entry, imprint in zip(effect_entries, imprints):
+        entry["imprint"] = imprint
+
     key = {
         "generator": f"brakegym synth {__version__}",
         "seed": seed,
         "recordings": n,
         "vehicle": VEHICLE,
         "effects": effect_entries,
-        "expected_selected": [entry["id"] for entry in effect_entries],
+        "expected_selected": [entry["id"] for entry in effect_entries if entry["imprint"]["expressed"]],
         "base_offset": offset,
         "base_offset_note": None
         if offset is None
@@ -411,6 +405,60 @@ def synthesize(
     key_path.parent.mkdir(parents=True, exist_ok=True)
     key_path.write_text(json.dumps(key, indent=2) + "\n")
     return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
+
+
+def _simulate_truth(plant, conditions: BatchConditions, chosen: Sequence[Effect], scatter_A: np.ndarray,
+                    applications: Sequence[Application], cylinders: Sequence[BrakeCylinder]):
+    """The true runs of the applications with the effects ``chosen``: (model, grid)."""
+    model = apply_effects(plant, conditions, chosen)
+    if any(isinstance(e, RunningResistanceEffect) for e in chosen):
+        # The effect sets the set's running resistance; each application still scatters around it.
+        model.conditions = dataclasses.replace(
+            model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + scatter_A
+        )
+    pressure = CommandedPressure(list(cylinders), plant.n_axles, TRUTH_STEP_S)
+    command = np.stack([a.axle_pressure_bar for a in applications])
+    command_time = np.array([a.command_time_s for a in applications])
+    schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
+    end_after_stop = np.array([a.standstill_s for a in applications])
+
+    def finished(sim) -> bool:
+        return bool(not sim.moving.any() and np.all(sim.time_s >= sim.stop_time_s + end_after_stop))
+
+    return model, simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
+
+
+def _imprint(recordings: Sequence[Recording], model, grid, without, decel_source: str, noise_scale: float) -> dict[str, Any]:
+    """What an effect leaves in the recordings: the noise-free channels with it against those of
+    the same runs without it, in units of each channel's sensor noise (the nominal noise when the
+    set is written noise-free), at the recordings' own sample instants.
+
+    ``expressed`` is false when no sample of any channel moves by IMPRINT_EXPRESSED_OVER_NOISE
+    noise sigmas or more: such an effect (a fade onset above every temperature the discs reached,
+    an adhesion limit above every deceleration demanded) is not in the data, and no diagnosis can
+    be asked to find it."""
+    model_without, grid_without = without
+    scale = noise_scale if noise_scale > 0 else 1.0
+    sigma = {SPEED: SENSOR_NOISE[SPEED], DECEL: SENSOR_NOISE[f"decel_mps2_{decel_source}"],
+             DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE], POSITION: SENSOR_NOISE[POSITION]}
+    sum_squares = {channel: 0.0 for channel in sigma}
+    largest = {channel: 0.0 for channel in sigma}
+    samples = 0
+    for b, record in enumerate(recordings):
+        time = record.data[TIME].to_numpy()
+        with_effect = MeasurementModel(grid, b, model, decel_source, INSTRUMENTED_DISC).channels(time)
+        without_effect = MeasurementModel(grid_without, b, model_without, decel_source, INSTRUMENTED_DISC).channels(time)
+        samples += len(time)
+        for channel, s in sigma.items():
+            change = (with_effect[channel] - without_effect[channel]) / (s * scale)
+            sum_squares[channel] += float(np.sum(change**2))
+            largest[channel] = max(largest[channel], float(np.max(np.abs(change))))
+    max_over_noise = max(largest.values())
+    return {
+        "max_change_over_noise": {channel: round(value, 3) for channel, value in largest.items()},
+        "rms_change_over_noise": {channel: round(math.sqrt(value / samples), 4) for channel, value in sum_squares.items()},
+        "expressed": bool(max_over_noise >= IMPRINT_EXPRESSED_OVER_NOISE),
+    }
 
 
 def _cylinder_pressure_bar(app: Application, cylinder: BrakeCylinder, time_s: np.ndarray) -> np.ndarray:
