@@ -1,6 +1,6 @@
 """``brakegym diagnose`` run blind on synthetic sets: it names a concealed gradient and recovers
 its size, names a friction level (or reports it indistinguishable from its confounders), and
-selects nothing on effect-free sets, also when the base model is moved within its scatter.
+names an adhesion limit and recovers it, selects nothing on effect-free sets, also when the base model is moved within its scatter.
 
 Sets are small (5-6 recordings) and only the best two screened effects are fitted in full, to
 keep the run short; the benchmark (``benchmarks/bench_diagnosis.py``) uses the defaults.
@@ -61,6 +61,19 @@ def test_names_a_friction_level_or_its_confounders(tmp_path):
     assert named, (report["selected"], report["indistinguishable"], report["summary"])
     if report["selected"] == ["friction_level"]:
         assert report["parameters"]["mu_scale"] == pytest.approx(mu_scale, abs=0.05)
+
+
+def test_names_an_adhesion_limit_and_recovers_it(tmp_path):
+    # The cap's chi^2 valley is about 0.005 wide in adhesion: the diagnosis must start from the
+    # plateau of the measured deceleration, not only from its grid (which found 1 in 7 such sets).
+    adhesion = round(float(SIZES.uniform(0.062, 0.078)), 4)
+    result = synthesize(tmp_path / "set", 6, seed=61, effects=[EffectRequest("adhesion_limit", {"adhesion": adhesion})])
+    assert result.key["expected_selected"] == ["adhesion_limit"]
+    report = diagnose(result.folder, top_singles=2, pairs_from=0).report
+    assert report["selected"] == ["adhesion_limit"], report["summary"]
+    assert report["parameters"]["adhesion"] == pytest.approx(adhesion, abs=0.002)
+    low, high = next(c for c in report["candidates"] if c["effects"] == ["adhesion_limit"])["ci95"]["adhesion"]
+    assert low - 0.001 <= adhesion <= high + 0.001
 
 
 def test_selects_nothing_when_the_base_model_is_only_moved_within_its_scatter(tmp_path):
