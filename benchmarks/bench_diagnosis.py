@@ -77,9 +77,10 @@ def expressed_effects(row: dict[str, Any]) -> list[str]:
 def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
     """Synthesize one set, diagnose it blind, and judge the verdict against the key."""
     started = time.time()
-    folder = tmp / f"set_{index:04d}"
+    # Named by the set seed: a rerun may hold the same index from several runs.
+    folder = tmp / f"set_{seed}"
     result = synthesize(folder, recordings, seed, random_effects=not free, base_offset=offset,
-                        key_path=tmp / f"key_{index:04d}.json")
+                        key_path=tmp / f"key_{seed}.json")
     truth = [e["id"] for e in result.key["effects"]]
     report = diagnose(folder, top_singles=args.top_singles, pairs_from=args.pairs_from).report
     selected = report["selected"]
