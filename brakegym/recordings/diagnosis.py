@@ -51,7 +51,7 @@ from typing import Any, Sequence
 import numpy as np
 from scipy import stats
 
-from .effects import EFFECTS, STANDARD_GRAVITY_MPS2, FrictionLevel
+from .effects import EFFECTS, STANDARD_GRAVITY_MPS2, AdhesionLimit, FrictionLevel
 from .fitting import FIT_CHANNELS, FitProblem, FitResult
 from .format import DECEL, DISC_TEMPERATURE, SPEED, Recording, read_dataset
 from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments
@@ -142,7 +142,7 @@ def _data_driven_points(effect_id: str, friction_factors: np.ndarray, context: d
     """
     if effect_id == FrictionLevel.id:
         return [np.array([_shared_friction_factor(friction_factors)])]
-    if effect_id == "adhesion_limit" and math.isfinite(context["peak_decel_mps2"]):
+    if effect_id == AdhesionLimit.id and math.isfinite(context["peak_decel_mps2"]):
         spec = EFFECTS[effect_id].spec("adhesion")
         plateau = context["peak_decel_mps2"] / STANDARD_GRAVITY_MPS2
         return [np.array([float(np.clip(plateau * share, spec.lower, spec.upper))]) for share in ADHESION_PLATEAU_SHARES]

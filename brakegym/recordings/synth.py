@@ -2,8 +2,9 @@
 
 A set is a campaign of brake applications of ``emu_8axle``, simulated with the physics a real
 train would add to the nominal model, and written as recordings (``format``) that look measured.
-The answer key (which effects, their parameters, the per-application truth) is written apart from
-the recordings: a diagnosis reading the folder cannot see it.
+The answer key (which effects, their parameters, each effect's imprint on the recordings, the
+per-application truth) is written apart from the recordings: a diagnosis reading the folder
+cannot see it.
 
 What varies, per application (from the seed):
 
