@@ -373,13 +373,12 @@ def synthesize(
             }
         )
 
-    imprints = [
-        _imprint(recordings, model, grid, _simulate_truth(plant, conditions, [e for e in chosen if e is not effect], scatter_A, applications, cylinders),
-                 decel_source, noise_scale)
-        for effect in chosen
-    ]
-    for entry, imprint in zip(effect_entries, imprints):
-        entry["imprint"] = imprint
+    if chosen:
+        true_channels = _sensor_channels(recordings, model, grid, decel_source)
+        for effect, entry in zip(chosen, effect_entries):
+            others = [e for e in chosen if e is not effect]
+            without = _sensor_channels(recordings, *_simulate_truth(plant, conditions, others, scatter_A, applications, cylinders), decel_source)
+            entry["imprint"] = _imprint(true_channels, without, decel_source, noise_scale)
 
     key = {
         "generator": f"brakegym synth {__version__}",
@@ -429,29 +428,35 @@ def _simulate_truth(plant, conditions: BatchConditions, chosen: Sequence[Effect]
     return model, simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
 
 
-def _imprint(recordings: Sequence[Recording], model, grid, without, decel_source: str, noise_scale: float) -> dict[str, Any]:
+def _sensor_channels(recordings: Sequence[Recording], model, grid, decel_source: str) -> list[dict[str, np.ndarray]]:
+    """Each recording's channels as its sensors would report the run ``grid``, noise-free, at the
+    recording's own sample instants."""
+    return [
+        MeasurementModel(grid, b, model, decel_source, INSTRUMENTED_DISC).channels(record.data[TIME].to_numpy())
+        for b, record in enumerate(recordings)
+    ]
+
+
+def _imprint(with_effect: Sequence[dict[str, np.ndarray]], without_effect: Sequence[dict[str, np.ndarray]],
+             decel_source: str, noise_scale: float) -> dict[str, Any]:
     """What an effect leaves in the recordings: the noise-free channels with it against those of
-    the same runs without it, in units of each channel's sensor noise (the nominal noise when the
-    set is written noise-free), at the recordings' own sample instants.
+    the same runs without it (:func:`_sensor_channels`), in units of each channel's sensor noise
+    (the nominal noise when the set is written noise-free).
 
     ``expressed`` is false when no sample of any channel moves by IMPRINT_EXPRESSED_OVER_NOISE
     noise sigmas or more: such an effect (a fade onset above every temperature the discs reached,
     an adhesion limit above every deceleration demanded) is not in the data, and no diagnosis can
     be asked to find it."""
-    model_without, grid_without = without
     scale = noise_scale if noise_scale > 0 else 1.0
     sigma = {SPEED: SENSOR_NOISE[SPEED], DECEL: SENSOR_NOISE[f"decel_mps2_{decel_source}"],
              DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE], POSITION: SENSOR_NOISE[POSITION]}
     sum_squares = {channel: 0.0 for channel in sigma}
     largest = {channel: 0.0 for channel in sigma}
     samples = 0
-    for b, record in enumerate(recordings):
-        time = record.data[TIME].to_numpy()
-        with_effect = MeasurementModel(grid, b, model, decel_source, INSTRUMENTED_DISC).channels(time)
-        without_effect = MeasurementModel(grid_without, b, model_without, decel_source, INSTRUMENTED_DISC).channels(time)
-        samples += len(time)
+    for with_channels, without_channels in zip(with_effect, without_effect):
+        samples += len(with_channels[SPEED])
         for channel, s in sigma.items():
-            change = (with_effect[channel] - without_effect[channel]) / (s * scale)
+            change = (with_channels[channel] - without_channels[channel]) / (s * scale)
             sum_squares[channel] += float(np.sum(change**2))
             largest[channel] = max(largest[channel], float(np.max(np.abs(change))))
     max_over_noise = max(largest.values())
