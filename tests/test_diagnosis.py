@@ -101,6 +101,16 @@ def test_names_four_failed_brake_units(tmp_path):
     assert report["parameters"]["failed_units"] == 4.0
 
 
+def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path):
+    # Drying at 0.73 MJ: on a linear screening grid (1.7, 5.0, 8.3 MJ) the fit ended in a second
+    # valley near 6.7 MJ with a loss of 0.38 (twice the truth's chi^2); the grid is geometric now.
+    result = synthesize(tmp_path / "set", 8, seed=562067968, effects=[EffectRequest("wet_pads", {"initial_loss": 0.2716, "drying_energy_MJ": 0.7277})])
+    report = diagnose(result.folder, top_singles=2, pairs_from=0).report
+    assert report["selected"] == ["wet_pads"], report["summary"]
+    assert report["parameters"]["initial_loss"] == pytest.approx(0.2716, abs=0.02)
+    assert report["parameters"]["drying_energy_MJ"] == pytest.approx(0.7277, rel=0.2)
+
+
 def test_selects_nothing_when_the_base_model_is_only_moved_within_its_scatter(tmp_path):
     folder = synthesize(tmp_path / "set", 5, seed=53, base_offset=True).folder
     report = diagnose(folder, top_singles=2, pairs_from=0).report

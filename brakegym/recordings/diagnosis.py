@@ -182,7 +182,11 @@ def _grid(effect_id: str) -> list[tuple[dict[str, float], np.ndarray]]:
         return [({spec.name: float(u)}, np.zeros(0)) for u in range(max(int(spec.lower), 1), top + 1)]
     specs = cls.parameters
     per = {1: GRID_POINTS_1D, 2: 3, 3: 2}[len(specs)]
-    axes = [spec.lower + (np.arange(per) + 0.5) / per * (spec.upper - spec.lower) for spec in specs]
+    midpoints = (np.arange(per) + 0.5) / per
+    axes = [
+        spec.lower * (spec.upper / spec.lower) ** midpoints if spec.log_grid else spec.lower + midpoints * (spec.upper - spec.lower)
+        for spec in specs
+    ]
     return [({}, np.array(point)) for point in itertools.product(*axes)]
 
 
