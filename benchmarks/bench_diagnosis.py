@@ -47,6 +47,8 @@ from brakegym.recordings.effects import EFFECTS
 from brakegym.recordings.synth import synthesize
 
 DEFAULT_RECORDINGS = 8
+CANDIDATE_KEYS = ("effects", "parameters", "delta_bic", "relevant_size", "heldout_gain", "heldout_t", "heldout_acts_on",
+                  "heldout_gain_per_recording")
 
 
 def judge(truth: list[str], selected: list[str], indistinguishable: list[list[str]]) -> tuple[str, bool]:
@@ -90,6 +92,9 @@ def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, ar
         "index": index, "seed": seed, "recordings": recordings, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
         "selected": selected, "parameters": report["parameters"], "ci95": chosen["ci95"] if chosen else {},
         "indistinguishable": report["indistinguishable"], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
+        # What a change to the selection rules can be judged on again without diagnosing anew.
+        "chi2_eff_unmodified": report["chi2_eff_unmodified"], "screening": report["screening"],
+        "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],
     }
 
 
