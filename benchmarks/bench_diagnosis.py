@@ -166,15 +166,17 @@ def drawn_jobs(seed: int, sets: int, free_share: float, recordings: int):
         yield index, set_seed, free, offset, recordings
 
 
-def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None):
+def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None, single: bool = False):
     """The sets of earlier rows again (same seeds, same bytes), those whose drawn effects include
-    one of ``where`` (``none``: the effect-free sets), for a check of a change to the diagnosis
-    on the sets it is about, without the whole benchmark."""
+    one of ``where`` (``none``: the effect-free sets), with ``single`` only the one-effect sets,
+    for a check of a change to the diagnosis on the sets it is about, without the whole benchmark."""
     count = 0
     for path in paths:
         for row in json.loads(Path(path).read_text()):
             ids = [e["id"] for e in row["truth"]]
             if where and not any((w == "none" and not ids) or w in ids for w in where):
+                continue
+            if single and len(ids) != 1:
                 continue
             if max_sets is not None and count >= max_sets:
                 return
@@ -191,6 +193,7 @@ def main() -> None:
     parser.add_argument("--where", action="append", metavar="EFFECT|none",
                         help="with --rerun: sets whose drawn effects include EFFECT, or effect-free ones (repeatable)")
     parser.add_argument("--max-sets", type=int, help="with --rerun: at most this many sets")
+    parser.add_argument("--single", action="store_true", help="with --rerun: only the sets with one effect")
     parser.add_argument("--sets", type=int)
     parser.add_argument("--seed", type=int)
     parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
@@ -206,7 +209,7 @@ def main() -> None:
         summarize(rows, args, sum(row["seconds"] for row in rows))
         return
     if args.rerun:
-        jobs = list(rerun_jobs(args.rerun, args.where, args.max_sets))
+        jobs = list(rerun_jobs(args.rerun, args.where, args.max_sets, args.single))
     elif args.sets is None or args.seed is None:
         parser.error("--sets and --seed are required unless --summarize or --rerun is given")
     else:
