@@ -8,7 +8,8 @@ physics from the effect library, fit it, and say how sure that is.
    axis of the state along which the residual lives (:func:`.locate.attribution`).
 3. Name: every effect of the library is screened on a grid inside its bounds, plus the points the
    data point at where an effect's valley is narrower than a grid step (the friction factors'
-   shared level; an adhesion just below the deceleration plateau: ``_data_driven_points``), all
+   shared level; an adhesion just below the deceleration plateau; a thermal fade's onset below
+   the measured peak disc temperature: ``_data_driven_points``), all
    points of an effect simulated in one batch, each point's nuisance refitted by chord
    iterations; the
    best ``top_singles`` are fitted with ``scipy.optimize.least_squares`` from their best grid
@@ -52,9 +53,9 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
-from .effects import EFFECTS, STANDARD_GRAVITY_MPS2, AdhesionLimit, BrakeUnitFailure, FrictionLevel
+from .effects import EFFECTS, STANDARD_GRAVITY_MPS2, AdhesionLimit, BrakeUnitFailure, FrictionLevel, ThermalFade
 from .fitting import FIT_CHANNELS, FitProblem, FitResult
 from .format import DECEL, DISC_TEMPERATURE, SPEED, Recording, read_dataset
 from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments
@@ -73,6 +74,9 @@ MAX_FAILED_UNITS_SCREENED = 4
 SCREEN_CHORD_ITERATIONS = 3
 # Adhesion start points, as shares of peak measured deceleration / g (see _data_driven_points).
 ADHESION_PLATEAU_SHARES = (0.80, 0.85, 0.88, 0.91, 0.94, 0.97, 1.0)
+FADE_RELEVANT_LOSS = 0.04  # share of mu a fade must take at the hottest surface reached
+# Thermal-fade onset start points, as shares of the peak measured disc temperature in degC.
+FADE_ONSET_PEAK_SHARES = (0.65, 0.75, 0.85, 0.95)
 SCREEN_MIN_GAIN = 1.0  # effective chi^2 a screened effect must gain to be fitted in full
 CHANNEL_NAMES = {SPEED: "speed", DECEL: "decel", DISC_TEMPERATURE: "T_disc"}
 
@@ -107,7 +111,12 @@ def _relevant(effect_id: str, parameters: dict[str, float], context: dict[str, f
     if effect_id == "adhesion_limit":
         return parameters["adhesion"] * STANDARD_GRAVITY_MPS2 < 0.97 * context["peak_decel_mps2"]
     if effect_id == "thermal_fade":
-        return parameters["loss_per_100K"] >= 0.05 and parameters["onset_C"] < context["peak_disc_C"] - 20.0
+        # The friction it takes away at the hottest friction surface of the fitted replays, as
+        # large as a relevant friction level. (The fade acts on the surface temperature, which
+        # runs tens of kelvin above the measured disc: a rule on the measured peak, onset 20 K
+        # below it, rejected a fade fitted at 229 degC, truth 224, in stops that peaked at 249.)
+        above_K = max(context["peak_friction_surface_C"] - parameters["onset_C"], 0.0)
+        return 1.0 - (1.0 - parameters["loss_per_100K"]) ** (above_K / 100.0) >= FADE_RELEVANT_LOSS
     if effect_id == "rotating_mass":
         return abs(parameters["mass_factor"]) >= 0.03
     if effect_id == "brake_unit_failure":
@@ -144,9 +153,20 @@ def _data_driven_points(effect_id: str, friction_factors: np.ndarray, context: d
       deceleration). The valley is about 0.005 wide in adhesion: a cap 0.01 too high leaves the
       emergency stops untouched, 0.01 too low stops every brake application short, and the grid's
       step (0.06) found it once in seven sets of the blind benchmark.
+    - ``thermal_fade``: onsets at shares of the peak measured disc temperature
+      (``FADE_ONSET_PEAK_SHARES``), each with the grid's three losses.
     """
     if effect_id == FrictionLevel.id:
         return [np.array([_shared_friction_factor(friction_factors)])]
+    if effect_id == ThermalFade.id and math.isfinite(context["peak_disc_C"]):
+        # Only onsets below the hottest friction surface act at all; the grid's onsets (167, 340,
+        # 513 degC) left a fade above 224 degC in stops that peak near 250 degC between a point
+        # that fades every stop and two that fade none.
+        onset = EFFECTS[effect_id].spec("onset_C")
+        loss = EFFECTS[effect_id].spec("loss_per_100K")
+        onsets = [float(np.clip(context["peak_disc_C"] * share, onset.lower, onset.upper)) for share in FADE_ONSET_PEAK_SHARES]
+        losses = loss.lower + (np.arange(3) + 0.5) / 3 * (loss.upper - loss.lower)
+        return [np.array([o, l]) for o in onsets for l in losses]
     if effect_id == AdhesionLimit.id and math.isfinite(context["peak_decel_mps2"]):
         spec = EFFECTS[effect_id].spec("adhesion")
         plateau = context["peak_decel_mps2"] / STANDARD_GRAVITY_MPS2
@@ -302,8 +322,9 @@ class Diagnoser:
     # -- held out --------------------------------------------------------------------------
     def _heldout(self, fit: FitResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals of each recording predicted with the effect parameters fitted without it
-        (one weighted Gauss-Newton step from the full fit), and their effective SSE per
-        recording (data rows and its friction-factor prior)."""
+        (one weighted Gauss-Newton step from the full fit, inside the bounds; the prediction
+        simulated, :meth:`_simulated_heldout`), and their effective SSE per recording (data rows
+        and its friction-factor prior)."""
         problem = self.problem
         p = len(fit.free)
         r = fit.residual
@@ -321,15 +342,48 @@ class Diagnoser:
                 blocks.append((rows, a, w))
                 projected.append(a.T @ (w[:, None] * a))
             total = np.sum(projected, axis=0)
+            lower, upper = problem.bounds(fit.free)
+            theta = fit.x[:p]
             for i, (rows, a, w) in enumerate(blocks):
                 others = total - projected[i] + 1e-9 * np.eye(p)
-                step = np.linalg.solve(others, a.T @ (w * r[rows]))
-                held[rows] = r[rows] + a @ step
-                steps[i] = step
+                pull = a.T @ (w * r[rows])
+                # The others' optimum inside the parameter bounds (the quadratic s'Os - 2 s'g as
+                # a bounded least-squares problem through O = L L'). Unbounded, a recording that
+                # holds most of an effect's evidence leaves the others' matrix nearly singular:
+                # the hottest stop of a thermal fade, left out, stepped the loss from 0.41 to 4.1
+                # per 100 K, and the linear prediction of that stop was 87 times worse than none.
+                cholesky = np.linalg.cholesky(others)
+                solution = optimize.lsq_linear(
+                    cholesky.T, np.linalg.solve(cholesky, pull), bounds=(lower[:p] - theta, upper[:p] - theta), method="bvls"
+                )
+                steps[i] = solution.x
+            held = self._simulated_heldout(fit, steps)
         # The held-out recording's friction-factor prior row counts: a set-wide friction shift
         # shows up there (its own factor refitted far from 1), not in its data rows.
         sse = np.array([np.sum((self.weights * held**2)[problem.recording_of == i]) for i in range(problem.n)])
         return held, sse, steps
+
+    def _simulated_heldout(self, fit: FitResult, steps: np.ndarray) -> np.ndarray:
+        """Each recording simulated with its leave-one-out effect parameters, its own nuisance
+        refitted by chord iterations (as in screening). The linear prediction ``r + a step`` is
+        not enough: a recording that holds most of an effect's evidence, left out, moves the
+        parameters far (a thermal fade's onset by tens of kelvin), and its linear prediction
+        swung from a 45 % gain to a 50 % loss with the bounds alone."""
+        problem = self.problem
+        p = len(fit.free)
+        lower, upper = problem.bounds(fit.free)
+        points = np.tile(fit.x, (problem.n, 1))
+        points[:, :p] = np.clip(points[:, :p] + steps, lower[:p], upper[:p])
+        profile = problem.profiler(fit.jacobian[:, p:])
+        held = fit.residual.copy()
+        for _ in range(SCREEN_CHORD_ITERATIONS):
+            residuals, _ = problem.simulate(list(fit.effect_ids), fit.fixed, fit.free, points)
+            for i, residual in enumerate(residuals):
+                projected, step = profile.project(residual)
+                rows = problem.recording_of == i
+                held[rows] = projected[rows]
+                points[i, p:] = np.clip(points[i, p:] + step, lower[p:], upper[p:])
+        return held
 
     # -- per-channel summaries --------------------------------------------------------------
     def _rms(self, residual: np.ndarray) -> dict[str, float]:
@@ -434,8 +488,10 @@ class Diagnoser:
             p = len(fit.free) + len(fit.fixed)
             held, sse, steps = self._heldout(fit)
             candidate = Candidate(effect_ids, fit, chi2, chi2 - chi2_base + p * log_n, sse, steps, held)
+            surface = [np.nanmax(r.states["T_fric_C"]) for r in fit.replays if "T_fric_C" in r.states]
+            context = {**self.context, "peak_friction_surface_C": float(max(surface)) if surface else math.inf}
             candidate.relevant = all(
-                _relevant(eid, {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, self.context)
+                _relevant(eid, {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, context)
                 for eid in effect_ids
             )
             return candidate
