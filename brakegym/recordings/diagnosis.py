@@ -165,7 +165,7 @@ def _data_driven_points(effect_id: str, friction_factors: np.ndarray, context: d
         onset = EFFECTS[effect_id].spec("onset_C")
         loss = EFFECTS[effect_id].spec("loss_per_100K")
         onsets = [float(np.clip(context["peak_disc_C"] * share, onset.lower, onset.upper)) for share in FADE_ONSET_PEAK_SHARES]
-        losses = loss.lower + (np.arange(3) + 0.5) / 3 * (loss.upper - loss.lower)
+        losses = _grid_axis(loss, 3)
         return [np.array([o, l]) for o in onsets for l in losses]
     if effect_id == AdhesionLimit.id and math.isfinite(context["peak_decel_mps2"]):
         spec = EFFECTS[effect_id].spec("adhesion")
@@ -205,12 +205,17 @@ def _grid(effect_id: str) -> list[tuple[dict[str, float], np.ndarray]]:
         return [({spec.name: float(u)}, np.zeros(0)) for u in range(max(int(spec.lower), 1), top + 1)]
     specs = cls.parameters
     per = {1: GRID_POINTS_1D, 2: 3, 3: 2}[len(specs)]
-    midpoints = (np.arange(per) + 0.5) / per
-    axes = [
-        spec.lower * (spec.upper / spec.lower) ** midpoints if spec.log_grid else spec.lower + midpoints * (spec.upper - spec.lower)
-        for spec in specs
-    ]
+    axes = [_grid_axis(spec, per) for spec in specs]
     return [({}, np.array(point)) for point in itertools.product(*axes)]
+
+
+def _grid_axis(spec, per: int) -> np.ndarray:
+    """``per`` screening values of one parameter: the midpoints of equal parts of its bounds
+    (geometric parts for a ``log_grid`` parameter)."""
+    midpoints = (np.arange(per) + 0.5) / per
+    if spec.log_grid:
+        return spec.lower * (spec.upper / spec.lower) ** midpoints
+    return spec.lower + midpoints * (spec.upper - spec.lower)
 
 
 @dataclass
@@ -306,18 +311,25 @@ class Diagnoser:
         One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
         gradient) needs a friction factor 8 % off, far outside the linear range of the samples near
         the stop, and a single step rated such a gradient worse than no effect at all."""
+        free = self.problem.free_parameters([effect_id], fixed)
+        projected, points = self._chord_refit([effect_id], fixed, free, np.concatenate([thetas, nuisances], axis=1), profile)
+        return np.array([self._chi2(residual) for residual in projected]), points[:, len(free) :]
+
+    def _chord_refit(self, effect_ids: Sequence[str], fixed: dict[str, float], free, points: np.ndarray, profile) -> tuple[np.ndarray, np.ndarray]:
+        """Each point (rows: effect parameters, then nuisance) with its nuisance refitted by
+        ``SCREEN_CHORD_ITERATIONS`` chord iterations: the residuals of the last simulation after
+        its linear nuisance step, and the points with the nuisance moved."""
         problem = self.problem
-        free = problem.free_parameters([effect_id], fixed)
+        p = len(free)
         lower, upper = problem.nuisance_bounds()
-        nuisances = nuisances.copy()
-        for iteration in range(SCREEN_CHORD_ITERATIONS):
-            residuals, _ = problem.simulate([effect_id], fixed, free, np.concatenate([thetas, nuisances], axis=1))
-            chi2 = np.empty(len(thetas))
+        points = points.copy()
+        for _ in range(SCREEN_CHORD_ITERATIONS):
+            residuals, _ = problem.simulate(list(effect_ids), fixed, free, points)
+            projected = np.empty_like(residuals)
             for j, residual in enumerate(residuals):
-                projected, step = profile.project(residual)
-                chi2[j] = self._chi2(projected)
-                nuisances[j] = np.clip(nuisances[j] + step, lower, upper)
-        return chi2, nuisances
+                projected[j], step = profile.project(residual)
+                points[j, p:] = np.clip(points[j, p:] + step, lower, upper)
+        return projected, points
 
     # -- held out --------------------------------------------------------------------------
     def _heldout(self, fit: FitResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -374,15 +386,11 @@ class Diagnoser:
         lower, upper = problem.bounds(fit.free)
         points = np.tile(fit.x, (problem.n, 1))
         points[:, :p] = np.clip(points[:, :p] + steps, lower[:p], upper[:p])
-        profile = problem.profiler(fit.jacobian[:, p:])
+        projected, _ = self._chord_refit(fit.effect_ids, fit.fixed, fit.free, points, problem.profiler(fit.jacobian[:, p:]))
         held = fit.residual.copy()
-        for _ in range(SCREEN_CHORD_ITERATIONS):
-            residuals, _ = problem.simulate(list(fit.effect_ids), fit.fixed, fit.free, points)
-            for i, residual in enumerate(residuals):
-                projected, step = profile.project(residual)
-                rows = problem.recording_of == i
-                held[rows] = projected[rows]
-                points[i, p:] = np.clip(points[i, p:] + step, lower[p:], upper[p:])
+        for i in range(problem.n):
+            rows = problem.recording_of == i
+            held[rows] = projected[i][rows]
         return held
 
     # -- per-channel summaries --------------------------------------------------------------
