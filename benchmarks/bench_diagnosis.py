@@ -91,7 +91,7 @@ def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, ar
     return {
         "index": index, "seed": seed, "recordings": recordings, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
         "selected": selected, "parameters": report["parameters"], "ci95": chosen["ci95"] if chosen else {},
-        "indistinguishable": report["indistinguishable"], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
+        "indistinguishable": report["indistinguishable"], "unconfirmed": [u["effects"] for u in report["unconfirmed"]], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
         # What a change to the selection rules can be judged on again without diagnosing anew.
         "chi2_eff_unmodified": report["chi2_eff_unmodified"], "screening": report["screening"],
         "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],
@@ -138,6 +138,14 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
                   f"({100 * expressed_hits[kind] / expressed_totals[kind]:.0f} %)")
     print(f"all     sets: {sum(expressed_hits.values())}/{sum(expressed_totals.values())}")
     print("drawn but not expressed: " + (", ".join(f"{k}: {v}" for k, v in unexpressed.most_common()) or "none"))
+    named_pairs = sum(bool(row["indistinguishable"]) for row in rows)
+    print(f"sets with candidates named indistinguishable: {named_pairs}")
+    # Rows written before the report had the key count as naming nothing unconfirmed.
+    flagged = [row for row in rows if row.get("unconfirmed")]
+    in_data = sum(any(set(ids) <= set(expressed_effects(row)) for ids in row["unconfirmed"]) for row in flagged)
+    free = sum(not row["truth"] for row in flagged)
+    print(f"sets with an unconfirmed candidate (not selected: acts on too few recordings): {len(flagged)}; "
+          f"an effect in the data: {in_data}; in effect-free sets: {free}")
     print("\nconfusion (truth -> selected):")
     for truth_label in sorted(confusion):
         print(f"  {truth_label:40s} " + ", ".join(f"{k}: {v}" for k, v in confusion[truth_label].most_common()))

@@ -32,7 +32,14 @@ physics from the effect library, fit it, and say how sure that is.
    ``HELDOUT_MIN_RECORDINGS``), and its size relevant. (A minimum relative held-out gain, 10 % at first,
    was dropped: a friction level's evidence lies in the friction-factor prior rows, a few percent
    of the set's error however large the level, and the size rule already guards relevance.) A pair is selected over
-   its best single by the same rules.
+   its best single by the same rules. Another passing single is named indistinguishable from the
+   selected one when its held-out error is within ``INDISTINGUISHABLE_HELDOUT`` and either its BIC
+   within 100 or its per-recording held-out errors not consistently worse (paired t below
+   ``HELDOUT_MIN_T``): in large data two confounders' BICs can differ by hundreds while neither
+   predicts a held-out recording better. A relevant single with a BIC gain that acts on at most
+   ``UNCONFIRMED_MAX_RECORDINGS`` recordings and removes ``UNCONFIRMED_MIN_GAIN`` of their held-out
+   error on average is not selected (a t over one or two recordings is no evidence of
+   consistency) but reported ``unconfirmed``, with the recordings that would confirm it.
 4. Model / show: parameters with 95 % intervals (the wider of the Gauss-Newton interval, inflated
    for the autocorrelation, and the jackknife over recordings with Student's t), residual RMS and stop-distance errors before and after; figures and a
    Markdown report (:mod:`.diagnosis_report`).
@@ -41,7 +48,10 @@ physics from the effect library, fit it, and say how sure that is.
 
 Thresholds (fixed before the first benchmark was run): ``SELECT_DELTA_BIC`` = -10, ``HELDOUT_MIN_T`` = 2, ``INDISTINGUISHABLE_HELDOUT`` = 0.10, ``UNEXPLAINED_ETA2`` = 0.10,
 ``MISMATCH_RMS_OVER_NOISE`` = 2. The recordings the t runs over (``HELDOUT_MOVES_SIGMA`` = 1,
-``HELDOUT_MIN_RECORDINGS`` = 2) were added after it, for effects that act on a few recordings only.
+``HELDOUT_MIN_RECORDINGS`` = 2) were added after it, for effects that act on a few recordings only;
+the ``unconfirmed`` report (``UNCONFIRMED_MAX_RECORDINGS`` = 2, ``UNCONFIRMED_MIN_GAIN`` = 0.10)
+after the rows of the stop-11 reruns: it names 2 of the 4 thermal fades missed there and nothing in
+30 effect-free sets.
 """
 
 from __future__ import annotations
@@ -65,6 +75,11 @@ SELECT_DELTA_BIC = -10.0
 HELDOUT_MIN_T = 2.0
 HELDOUT_MOVES_SIGMA = 1.0  # a recording counts in the paired t when the candidate moves its prediction this much
 HELDOUT_MIN_RECORDINGS = 2
+# A candidate that acts on at most this many recordings cannot show a consistent held-out gain
+# over recordings; it is reported unconfirmed (not selected) when it removes at least
+# UNCONFIRMED_MIN_GAIN of their held-out error on average.
+UNCONFIRMED_MAX_RECORDINGS = 2
+UNCONFIRMED_MIN_GAIN = 0.10
 INDISTINGUISHABLE_HELDOUT = 0.10
 UNEXPLAINED_ETA2 = 0.10
 MISMATCH_RMS_OVER_NOISE = 2.0
@@ -96,6 +111,13 @@ SEPARATING_MEASUREMENT = {
     frozenset({"wet_pads", "thermal_fade"}): "stops from a low speed with a hot disc (fade depends on temperature, "
     "wet pads on the energy dissipated since the start)",
 }
+# What would confirm or reject a candidate that acts on too few recordings ({where}: those it acts on).
+CONFIRMING_MEASUREMENT = {
+    "thermal_fade": "more stops that heat the discs as far as {where} did (the fade acts above {onset_C:.0f} degC only)",
+    "adhesion_limit": "more stops braked as hard as {where} (the limit acts at the highest decelerations only)",
+    "wet_pads": "more stops in the conditions of {where} (wet pads act until the pads have dried)",
+}
+DEFAULT_CONFIRMATION = "more recordings in the conditions of {where}"
 DEFAULT_SEPARATION = "coasting phases, the disc temperature and the kinematic consistency of speed, deceleration and position"
 
 
@@ -132,6 +154,18 @@ def _relevant(effect_id: str, parameters: dict[str, float], context: dict[str, f
     if effect_id == "temperature_sensor_lag":
         return parameters["tau_s"] >= 1.0
     raise KeyError(effect_id)
+
+
+def _paired_t(differences: np.ndarray) -> float:
+    """Student's t of the mean of paired differences (one per recording): inf when they agree
+    exactly and are positive, nan with fewer than two."""
+    if len(differences) < 2:
+        return math.nan
+    spread = float(np.std(differences, ddof=1))
+    mean = float(np.mean(differences))
+    if spread == 0:
+        return math.copysign(math.inf, mean) if mean else math.nan
+    return mean / (spread / math.sqrt(len(differences)))
 
 
 def _shared_friction_factor(friction_factors: np.ndarray) -> float:
@@ -229,6 +263,8 @@ class Candidate:
     heldout_residual: np.ndarray  # every row predicted with the effect fitted without its recording
     report: dict[str, Any] = field(default_factory=dict)
     relevant: bool = True
+    passes: bool = False  # beats the unmodified model by every rule (singles)
+    acting_gain: float = math.nan  # mean share of held-out error removed over the recordings it acts on
 
 
 @dataclass
@@ -546,12 +582,8 @@ class Diagnoser:
             shares = d / np.maximum(reference_sse, 1e-12)
             moved = np.abs(candidate.heldout_residual - reference_held)
             acts_on = np.array([bool(np.any(moved[problem.recording_of == i] >= HELDOUT_MOVES_SIGMA)) for i in range(problem.n)])
-            d_acting = shares[acts_on]
-            spread = float(np.std(d_acting, ddof=1)) if len(d_acting) > 1 else math.nan
-            if len(d_acting) < HELDOUT_MIN_RECORDINGS or math.isnan(spread):
-                t = math.nan
-            else:
-                t = math.inf if spread == 0 else float(np.mean(d_acting) / (spread / math.sqrt(len(d_acting))))
+            t = _paired_t(shares[acts_on]) if acts_on.sum() >= HELDOUT_MIN_RECORDINGS else math.nan
+            candidate.acting_gain = float(np.mean(shares[acts_on])) if acts_on.any() else math.nan
             candidate.report["heldout_gain"] = round(gain, 4)
             candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
             candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
@@ -559,7 +591,9 @@ class Diagnoser:
             return candidate.relevant and candidate.delta_bic - reference_bic < SELECT_DELTA_BIC and t >= HELDOUT_MIN_T
 
         base_held = baseline.residual
-        passing = [c for c in singles if beats(c, 0.0, base_sse, base_held)]
+        for candidate in singles:
+            candidate.passes = beats(candidate, 0.0, base_sse, base_held)
+        passing = [c for c in singles if c.passes]
         selected = min(passing, key=lambda c: float(np.sum(c.heldout_sse))) if passing else None
         if selected is not None:
             for pair in pairs:
@@ -570,6 +604,13 @@ class Diagnoser:
             for pair in pairs:
                 beats(pair, 0.0, base_sse, base_held)
 
+        # Two passing singles explain the data equally well when their held-out errors are within
+        # INDISTINGUISHABLE_HELDOUT and either their BICs are close or the recordings do not tell
+        # their held-out errors apart (paired t of the per-recording difference below
+        # HELDOUT_MIN_T). The second arm is for confounders in large data: a rotating mass and
+        # failed brake units differed by 120-370 in BIC where the base model's own misfit is worth
+        # thousands, with held-out errors 1-8 % apart and paired t 0.4-0.7 (one of them the wrong
+        # effect selected with nothing said).
         indistinguishable = []
         if selected is not None and len(selected.effect_ids) == 1:
             best_sse = float(np.sum(selected.heldout_sse))
@@ -577,8 +618,26 @@ class Diagnoser:
                 if other is selected:
                     continue
                 close = float(np.sum(other.heldout_sse)) <= (1.0 + INDISTINGUISHABLE_HELDOUT) * best_sse
-                if close and abs(other.delta_bic - selected.delta_bic) < -SELECT_DELTA_BIC * 10:
+                similar_bic = abs(other.delta_bic - selected.delta_bic) < -SELECT_DELTA_BIC * 10
+                difference = (other.heldout_sse - selected.heldout_sse) / np.maximum(base_sse, 1e-12)
+                if close and (similar_bic or not _paired_t(difference) >= HELDOUT_MIN_T):
                     indistinguishable.append([selected.effect_ids[0], other.effect_ids[0]])
+
+        # An effect that fits the one or two recordings it acts on far better cannot pass a paired
+        # t over recordings (the blind benchmark's fades that only the hottest one or two stops of
+        # eight reached: BIC lower by 1,300-4,900, 34-41 % of those stops' held-out error removed).
+        # It is not selected, but named with the recordings that would confirm it.
+        selected_ids = set(selected.effect_ids) if selected else set()
+        unconfirmed = [
+            c
+            for c in singles
+            if not c.passes
+            and c.effect_ids[0] not in selected_ids
+            and c.relevant
+            and c.delta_bic < SELECT_DELTA_BIC
+            and 1 <= len(c.report["heldout_acts_on"]) <= UNCONFIRMED_MAX_RECORDINGS
+            and c.acting_gain >= UNCONFIRMED_MIN_GAIN
+        ]
 
         # Locate: residuals of the unmodified model.
         traces = [residual_trace(r) for r in baseline.replays]
@@ -591,14 +650,13 @@ class Diagnoser:
             best_eta = max((max(v.values()) for v in shares.values()), default=0.0)
             if best_eta >= UNEXPLAINED_ETA2 and mismatch_channels:
                 unexplained = describe_unexplained(traces, shares)
-        significant = selected is not None or unexplained is not None
+        significant = selected is not None or unexplained is not None or bool(unconfirmed)
 
         base_heldout_rms = self._rms(baseline.residual)
         base_stop = self._stop_errors(baseline)
         candidates_out = []
         for candidate in sorted(singles + pairs, key=lambda c: c.delta_bic):
             fit = candidate.fit
-            held, _, _ = self._heldout(fit)
             candidate.report.update(
                 {
                     "effects": list(candidate.effect_ids),
@@ -607,7 +665,7 @@ class Diagnoser:
                     "rms_before": base_rms,
                     "rms_after": self._rms(fit.residual),
                     "heldout_rms_before": base_heldout_rms,
-                    "heldout_rms_after": self._rms(held),
+                    "heldout_rms_after": self._rms(candidate.heldout_residual),
                     "delta_bic": round(candidate.delta_bic, 1),
                     "relevant_size": candidate.relevant,
                     "stop_distance_error_before": base_stop,
@@ -637,6 +695,7 @@ class Diagnoser:
             "separating_measurements": {
                 " / ".join(pair): SEPARATING_MEASUREMENT.get(frozenset(pair), DEFAULT_SEPARATION) for pair in indistinguishable
             },
+            "unconfirmed": [_unconfirmed_entry(c) for c in unconfirmed],
             "unexplained": unexplained["text"] if unexplained else None,
             "unexplained_fit": unexplained,
             "screening": screened_out,
@@ -648,7 +707,45 @@ class Diagnoser:
         return Diagnosis(report, self.recordings, baseline, selected, problem)
 
 
+def _unconfirmed_entry(candidate: Candidate) -> dict[str, Any]:
+    effect_id = candidate.effect_ids[0]
+    acts_on = candidate.report["heldout_acts_on"]
+    parameters = candidate.report["parameters"]
+    template = CONFIRMING_MEASUREMENT.get(effect_id, DEFAULT_CONFIRMATION)
+    where = ", ".join(Path(name).name for name in acts_on)
+    return {
+        "effects": list(candidate.effect_ids),
+        "parameters": parameters,
+        "acts_on": acts_on,
+        "heldout_gain_acting": round(candidate.acting_gain, 4),
+        "delta_bic": round(candidate.delta_bic, 1),
+        "to_confirm": template.format(where=where, **parameters),
+    }
+
+
+def _unconfirmed_text(report: dict[str, Any]) -> str:
+    sentences = []
+    for entry in report["unconfirmed"]:
+        parameters = ", ".join(f"{name} = {value:g}" for name, value in entry["parameters"].items())
+        k = len(entry["acts_on"])
+        sentences.append(
+            f"{' + '.join(entry['effects'])} ({parameters}) fits the {k} recording{'s' if k > 1 else ''} it acts on "
+            f"({', '.join(Path(name).name for name in entry['acts_on'])}) much better (BIC lower by {-entry['delta_bic']:.0f}; "
+            f"{100 * entry['heldout_gain_acting']:.0f} % of their held-out error removed), but {k} of {report['recordings']} "
+            f"recordings are too few to confirm it on recordings held out of the fit, so it is not selected; "
+            f"to confirm or reject it: {entry['to_confirm']}."
+        )
+    return " ".join(sentences)
+
+
 def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
+    text = _verdict(report, selected)
+    if report["unconfirmed"]:
+        text += " Unconfirmed: " + _unconfirmed_text(report)
+    return text
+
+
+def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
     n = report["recordings"]
     noise = report["noise"]
     noise_text = (
@@ -673,7 +770,10 @@ def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
             text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
         return text
     if report["unexplained"]:
-        return f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library explains it. {report['unexplained']}"
+        verdict = "is confirmed on held-out recordings" if report["unconfirmed"] else "explains it"
+        return f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library {verdict}. {report['unexplained']}"
+    if report["unconfirmed"]:
+        return f"Across {n} recordings ({noise_text}) no effect of the library is confirmed on held-out recordings."
     return (
         f"Across {n} recordings ({noise_text}) the unmodified model fits within noise and friction scatter once each "
         "recording's initial speed, initial disc temperature and friction factor are fitted; no effect of the library "

@@ -112,7 +112,9 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
         report["summary"],
         "",
         f"**Selected:** {', '.join(report['selected']) or 'nothing'}. **Indistinguishable:** "
-        f"{'; '.join(' / '.join(p) for p in report['indistinguishable']) or 'none'}.",
+        f"{'; '.join(' / '.join(p) for p in report['indistinguishable']) or 'none'}. **Unconfirmed** (fits the "
+        f"few recordings it acts on, too few to confirm held out): "
+        f"{'; '.join(' + '.join(u['effects']) for u in report['unconfirmed']) or 'none'}.",
         "",
         "## Where the unmodified model misses (variance share of the residual along each axis, eta^2)",
         "",

@@ -245,6 +245,6 @@ def describe_unexplained(traces: Sequence[ResidualTrace], shares: dict[str, dict
             f"The residual deceleration (measured minus simulated, from the speed signal) lives along {label} "
             f"(eta^2 = {shares['decel'][axis]:.2f}) and follows a {form} function of it, "
             f"residual decel [m/s^2] = {terms} with x the {label} [{axis.rsplit('_', 1)[-1]}]; "
-            f"that description removes {100 * fits[form][0]:.0f} % of its mean square. No effect of the library explains it."
+            f"that description removes {100 * fits[form][0]:.0f} % of its mean square."
         ),
     }
