@@ -216,7 +216,7 @@ class FitProblem:
         parts = []
         for replayed, samples in zip(replays, self.samples):
             for channel, rows in samples.rows.items():
-                simulated = replayed.simulated[channel].to_numpy()[rows]
+                simulated = replayed.channels[channel][rows]
                 parts.append((samples.measured[channel] - simulated) / self.noise[channel])
         parts.append((scatter - 1.0) / self.prior_sigma)
         return np.concatenate(parts)

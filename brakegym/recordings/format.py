@@ -16,7 +16,7 @@ import json
 import math
 import re
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Any, Iterator, Literal
 
@@ -168,6 +168,12 @@ def read_metadata(json_path: str | Path) -> RecordingMetadata:
 # The recording
 
 
+def _read_only(values: np.ndarray) -> np.ndarray:
+    values = values.copy(order="K") if values.base is not None or not values.flags.owndata else values
+    values.flags.writeable = False
+    return values
+
+
 def _line(row: int) -> int:
     """The CSV line a user sees for sample ``row`` (0-based): the header is line 1."""
     return row + 2
@@ -179,7 +185,9 @@ class Recording:
     and the validated metadata. Constructing one validates it, so a Recording is always valid.
 
     Known channels are float64 with NaN for missing samples; extra columns are float64 when every
-    filled cell is a number, else kept as the text that was read.
+    filled cell is a number, else kept as the text that was read. The samples are read-only: the
+    arrays of :meth:`channel` and the properties are taken from the DataFrame once (a fit replays
+    a recording thousands of times) and cannot be written to; build a new Recording to change one.
     """
 
     stem: str
@@ -217,26 +225,30 @@ class Recording:
 
     @property
     def time_s(self) -> np.ndarray:
-        return self.data[TIME].to_numpy(dtype=float)
+        return self.channel(TIME)
 
     @property
     def speed_mps(self) -> np.ndarray:
-        return self.data[SPEED].to_numpy(dtype=float)
+        return self.channel(SPEED)
 
     @property
     def pressure_columns(self) -> list[str]:
         return [pressure_column(axle) for axle in range(1, self.vehicle.n_axles + 1)]
 
-    @property
+    @cached_property
     def pressures_bar(self) -> np.ndarray:
-        """Cylinder pressures (samples, axles), NaN where missing."""
-        return self.data[self.pressure_columns].to_numpy(dtype=float)
+        """Cylinder pressures (samples, axles), NaN where missing (read-only)."""
+        return _read_only(self.data[self.pressure_columns].to_numpy(dtype=float))
 
     def channel(self, name: str) -> np.ndarray | None:
-        """A column as floats, or None when the recording does not have it."""
-        if name not in self.data.columns:
-            return None
-        return self.data[name].to_numpy(dtype=float)
+        """A column as floats (read-only), or None when the recording does not have it."""
+        if name not in self._columns:
+            self._columns[name] = _read_only(self.data[name].to_numpy(dtype=float)) if name in self.data.columns else None
+        return self._columns[name]
+
+    @cached_property
+    def _columns(self) -> dict[str, np.ndarray | None]:
+        return {}
 
     @property
     def initial_disc_C(self) -> float | None:

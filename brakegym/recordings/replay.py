@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable, Sequence
 
 import numpy as np
@@ -122,18 +123,28 @@ def bridged_pressures_bar(recording: Recording) -> np.ndarray:
 class Replay:
     """A recording simulated from its own inputs.
 
-    ``simulated``: the recording's channels as its sensors would report the simulation, at its
-    sample instants (``time_s`` first). ``states``: true simulated states at the same instants,
-    the axes along which to locate a mismatch. Times are on the recording's clock.
+    ``channels``: the recording's channels as its sensors would report the simulation, at its
+    sample instants (``time_s`` first), as arrays; ``simulated`` is the same as a DataFrame.
+    ``states``: true simulated states at the same instants, the axes along which to locate a
+    mismatch. Times are on the recording's clock. The DataFrames and the states are made when
+    first asked for: a fit replays thousands of times and reads only ``channels``.
     """
 
     recording: Recording
-    simulated: pd.DataFrame
-    states: pd.DataFrame
+    channels: dict[str, np.ndarray]
     stop_time_s: float  # simulated standstill on the recording's clock; nan if it did not stop
     initial_speed_mps: float  # true initial speed used
     initial_disc_C: float
     measurement: MeasurementModel
+
+    @cached_property
+    def simulated(self) -> pd.DataFrame:
+        return pd.DataFrame(self.channels)
+
+    @cached_property
+    def states(self) -> pd.DataFrame:
+        time = self.recording.time_s
+        return _states(self.measurement, time - time[0], time, self.recording.metadata.instrumented_disc)
 
     def at(self, time_s: np.ndarray) -> dict[str, np.ndarray]:
         """Simulated channels at any instants of the recording's clock."""
@@ -242,12 +253,10 @@ def replay_batch(
         measurement = MeasurementModel(grid, b, model, meta.decel_source, meta.instrumented_disc)
         time = recording.time_s
         relative = time - time[0]
-        simulated = pd.DataFrame({TIME: time, **measurement.channels(relative)})
         replays.append(
             Replay(
                 recording=recording,
-                simulated=simulated,
-                states=_states(measurement, grid, b, relative, time, meta.instrumented_disc),
+                channels={TIME: time, **measurement.channels(relative)},
                 stop_time_s=float(grid.stop_time_s[b] + time[0]),
                 initial_speed_mps=float(initial_v[b]),
                 initial_disc_C=float(initial_C[b]),
@@ -266,7 +275,8 @@ def _overrides(values: Sequence[float] | np.ndarray | None, n: int, what: str) -
     return array
 
 
-def _states(measurement: MeasurementModel, grid: GridTrajectory, b: int, relative: np.ndarray, time: np.ndarray, disc: int | None) -> pd.DataFrame:
+def _states(measurement: MeasurementModel, relative: np.ndarray, time: np.ndarray, disc: int | None) -> pd.DataFrame:
+    grid, b = measurement.grid, measurement.index
     speed, position, decel = measurement.kinematics(relative)
     heat = grid.friction_heat_J[:, :, b]
     states = {
