@@ -608,7 +608,7 @@ class Diagnoser:
         # INDISTINGUISHABLE_HELDOUT and either their BICs are close or the recordings do not tell
         # their held-out errors apart (paired t of the per-recording difference below
         # HELDOUT_MIN_T). The second arm is for confounders in large data: a rotating mass and
-        # failed brake units differed by 120-370 in BIC where the base model's own misfit is worth
+        # failed brake units differed by 100-370 in BIC where the base model's own misfit is worth
         # thousands, with held-out errors 1-8 % apart and paired t 0.4-0.7 (one of them the wrong
         # effect selected with nothing said).
         indistinguishable = []
