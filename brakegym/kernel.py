@@ -672,8 +672,10 @@ def fused_rk4_steps(
     pressures come from ``cylinders``, the state of a ``CommandedPressure`` as (history (H, B, A),
     dead steps (B,), half-step and full-step lag factors (B,), pressure (B, A), command (B, A)),
     which the steps advance in place (the pressure row too); or, where its history is empty (H = 0),
-    from ``stage_pressure_bar`` (3, B, A), the pressures at the start, middle and end of a single
-    step. Step n writes the states ``discs[n % 2]`` (two buffers, or one for a single step), ``trains[n % 2]``, ``movings[n % 2]``, and
+    from ``stage_pressure_bar`` (2 n_steps + 1, B, A), the prescribed pressures at every half step
+    (step n at rows 2n, 2n + 1, 2n + 2: its start, middle and end). Step n writes the states
+    ``discs[n % S]``, ``trains[n % S]``, ``movings[n % S]`` for S buffers (two to keep only the
+    last state, one for a single step, ``n_steps`` to keep every step's), and
     the last step the stop fraction (nan if none) and the clamp forces at its start and end into
     ``clamp_N`` (2, A, 1, B); sets ``stop_time_s`` of the trains that stop. Time is
     ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it. With
@@ -714,18 +716,22 @@ def fused_rk4_steps(
     friction_scale_per_disc = friction_scale.reshape(1, n_axles, per_axle, n_trains)
     extra_force_per_train = extra_force_N.reshape(1, n_trains)
 
+    buffers = discs.shape[0]
     for n in range(n_steps):
         step = first_step + n
         time_s = step * step_s
-        disc_in = disc0 if n == 0 else discs[(n - 1) % 2]
-        train_in = train0 if n == 0 else trains[(n - 1) % 2]
-        moving_in = moving0 if n == 0 else movings[(n - 1) % 2]
-        disc_out, train_out, moving_out = discs[n % 2], trains[n % 2], movings[n % 2]
+        disc_in = disc0 if n == 0 else discs[(n - 1) % buffers]
+        train_in = train0 if n == 0 else trains[(n - 1) % buffers]
+        moving_in = moving0 if n == 0 else movings[(n - 1) % buffers]
+        disc_out, train_out, moving_out = discs[n % buffers], trains[n % buffers], movings[n % buffers]
+        first_pressure_row = 0
         if commanded:
             _commanded_pressures(
                 step, history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar, stage_pressure_bar
             )
             cylinder_pressure_bar[:, :] = stage_pressure_bar[2]
+        else:
+            first_pressure_row = 2 * n
         for tile_start in range(0, n_trains, tile):
             n_tile = min(tile, n_trains - tile_start)
             n_slots = n_discs * n_tile
@@ -741,7 +747,7 @@ def fused_rk4_steps(
                 stage_speed[t] = train_start[SPEED, t]
             for moment in range(3):
                 _clamp_of_tile(
-                    parameters, stage_pressure_bar[moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
+                    parameters, stage_pressure_bar[first_pressure_row + moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
                     axle_clamp_term[moment], slot_clamp_N[moment], clamp_term[moment], weighted_clamp_N[moment],
                 )  # fmt: skip
             if n == n_steps - 1:

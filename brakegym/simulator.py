@@ -299,8 +299,21 @@ class PrescribedPressure:
         # The end as the next step will compute its start, so that the two are the same number.
         return self._at(t), self._at(t + 0.5 * self.step_s), self._at(self._t0 + (self._step + 1) * self.step_s)
 
+    def half_step_pressures_bar(self, n_steps: int) -> np.ndarray:
+        """The pressures of the next ``n_steps`` steps at every half step, (2 n_steps + 1, B, A):
+        the rows :meth:`stage_pressures_bar` gives step by step, the same numbers."""
+        steps = self._step + np.arange(n_steps + 1)
+        starts = self._t0 + steps * self.step_s
+        times = np.empty(2 * n_steps + 1)
+        times[0::2] = starts
+        times[1::2] = starts[:-1] + 0.5 * self.step_s
+        return np.stack([self._interpolated(float(t)) for t in times])
+
     def advance(self) -> None:
         self._step += 1
+
+    def advance_by(self, n_steps: int) -> None:
+        self._step += n_steps
 
 
 @dataclass
@@ -556,24 +569,55 @@ class Simulator:
             for _ in range(n_steps):
                 record = self._step_staged()
             return record
-        if isinstance(self.pressure, CommandedPressure):
-            return self._steps_fused(n_steps, self.pressure)
+        if isinstance(self.pressure, (CommandedPressure, PrescribedPressure)):
+            return self._steps_fused(n_steps)[0]
         for _ in range(n_steps):
-            record = self._steps_fused(1, None)
+            record = self._steps_fused(1)[0]
         return record
 
-    def _steps_fused(self, n_steps: int, commanded: CommandedPressure | None) -> StepRecord:
+    def trajectory(self, n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Advance by ``n_steps`` steps as :meth:`step` does, and return the state after each:
+        disc states (n_steps, 6, A, k, B), train states (n_steps, 6, B) and moving (n_steps, B);
+        the last rows are the simulator's state (read them, do not write to them). Without
+        state-dependent hooks and with a commanded or prescribed pressure in one compiled call."""
+        if n_steps < 1:
+            raise ValueError(f"n_steps = {n_steps}: must be at least 1")
+        if self.has_hooks or not isinstance(self.pressure, (CommandedPressure, PrescribedPressure)):
+            return self._trajectory_stepwise(n_steps)
+        _, discs, trains, movings = self._steps_fused(n_steps, keep_every_step=True)
+        return discs, trains, movings
+
+    def _trajectory_stepwise(self, n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        discs, trains, movings = [], [], []
+        for _ in range(n_steps):
+            self.step()
+            discs.append(self.disc)
+            trains.append(self.train)
+            movings.append(self.moving)
+        return np.stack(discs), np.stack(trains), np.stack(movings)
+
+    def _steps_fused(
+        self, n_steps: int, keep_every_step: bool = False
+    ) -> tuple[StepRecord, np.ndarray, np.ndarray, np.ndarray]:
+        """``n_steps`` steps in one kernel call (one step for a pressure source that is neither
+        commanded nor prescribed); the record of the last and the state buffers."""
         n, axles = self.n_trains, self.plant.n_axles
         disc0, train0, moving0 = self.disc, self.train, self.moving
-        buffers = min(n_steps, 2)
+        buffers = n_steps if keep_every_step else min(n_steps, 2)
         discs, trains = np.empty((buffers, *disc0.shape)), np.empty((buffers, *train0.shape))
         movings = np.empty((buffers, n), dtype=bool)
         stop_fraction = np.empty(n)
         clamp = np.empty((2, axles, 1, n))
+        commanded = self.pressure if isinstance(self.pressure, CommandedPressure) else None
         if commanded is not None:
             cylinders = commanded.kernel_state()
             stage_pressures = np.empty((3, n, axles))
+        elif isinstance(self.pressure, PrescribedPressure):
+            cylinders = self._no_cylinders
+            stage_pressures = np.ascontiguousarray(self.pressure.half_step_pressures_bar(n_steps), dtype=float)
         else:
+            if n_steps != 1:
+                raise ValueError(f"{type(self.pressure).__name__} gives the pressures of one step at a time")
             cylinders = self._no_cylinders
             stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
         friction_scale, extra_force_N = self._step_hook_arrays()
@@ -582,11 +626,11 @@ class Simulator:
             friction_scale, extra_force_N, disc0, train0, moving0, self.hold_standing_trains, cylinders, stage_pressures,
             discs, trains, movings, stop_fraction, self.stop_time_s, clamp,
         )  # fmt: skip
-        last = (n_steps - 1) % 2
+        last = (n_steps - 1) % buffers
         if n_steps == 1:
             disc_start, train_start = disc0, train0
         else:
-            disc_start, train_start = discs[1 - last], trains[1 - last]
+            disc_start, train_start = discs[(n_steps - 2) % buffers], trains[(n_steps - 2) % buffers]
         record = StepRecord(
             (self.step_index + n_steps - 1) * self.step_s, disc_start, train_start, clamp[0], clamp[1], stop_fraction
         )
@@ -594,11 +638,13 @@ class Simulator:
         self.disc, self.train, self.moving = discs[last], trains[last], movings[last]
         if commanded is not None:
             commanded.advanced_by(n_steps, cylinders[4])
+        elif isinstance(self.pressure, PrescribedPressure):
+            self.pressure.advance_by(n_steps)
         else:
             self.pressure.advance()
         self.step_index += n_steps
         self.last_step = record
-        return record
+        return record, discs, trains, movings
 
     @property
     def _no_cylinders(self) -> tuple[np.ndarray, ...]:
@@ -654,12 +700,16 @@ class Simulator:
     def deceleration_mps2(self) -> np.ndarray:
         """Instantaneous deceleration of each train at the current state, m/s^2 (positive while
         slowing, zero at standstill)."""
-        clamp_force = np.ascontiguousarray(self.clamp_force_N(self.pressure.pressure_bar), dtype=float)
+        return self.deceleration_at_mps2(self.disc, self.train, self.moving, self.pressure.pressure_bar)
+
+    def deceleration_at_mps2(self, disc: np.ndarray, train: np.ndarray, moving: np.ndarray, pressure_bar: np.ndarray) -> np.ndarray:
+        """:meth:`deceleration_mps2` at another state of these trains (a row of
+        :meth:`trajectory`), with the cylinder pressures (B, A) of that moment; hooks that
+        depend on the state are evaluated at the current state, so use it without them."""
+        clamp_force = np.ascontiguousarray(self.clamp_force_N(pressure_bar), dtype=float)
         scale, extra = self._step_hook_arrays()  # constant hooks too
         out = np.empty(self.n_trains)
-        kernel.deceleration_mps2(
-            self._parameters, self.disc, self.train, self.moving, clamp_force, scale, extra, self._constants, out
-        )  # fmt: skip
+        kernel.deceleration_mps2(self._parameters, disc, train, moving, clamp_force, scale, extra, self._constants, out)
         return out
 
     def state_view(self, name: str) -> np.ndarray:

@@ -19,6 +19,7 @@ from brakegym.simulator import (
     BatchConditions,
     CommandedPressure,
     NumpyReferenceSimulator,
+    PrescribedPressure,
     Simulator,
 )
 
@@ -370,6 +371,39 @@ def test_step_record_keeps_the_pre_step_state(plant):
     np.testing.assert_array_equal(record.disc_start, disc_before)
     np.testing.assert_array_equal(record.train_start, train_before)
     np.testing.assert_array_equal(record.clamp_force_start_N[:, 0, :], sim.clamp_force_N(np.full((n, 8), 3.3))[:, 0, :])
+
+
+@pytest.mark.parametrize("source", ["prescribed", "commanded"])
+def test_trajectory_in_one_call_is_step_by_step_bit_for_bit(plant, source):
+    """Simulator.trajectory (one compiled call, every step's state kept) against step() one step
+    at a time, with a pressure that changes within the steps, trains that stop inside the run."""
+    rng = np.random.default_rng(5)
+    n, n_steps, step_s = 4, 60, 0.1
+
+    def pressure_source():
+        if source == "commanded":
+            pressure = CommandedPressure([BrakeCylinder(0.2, 0.8)] * n, plant.n_axles, step_s)
+            pressure.set_command(np.full((n, plant.n_axles), 3.8))
+            return pressure
+        knots = np.linspace(0.0, n_steps * step_s, 37)  # not on the half steps
+        trace = np.clip(np.linspace(0.0, 4.5, len(knots))[:, None, None] + rng.normal(0, 0.2, (len(knots), n, plant.n_axles)), 0, None)
+        return PrescribedPressure(knots, trace, step_s)
+
+    batch = _random_batch(plant, n, np.random.default_rng(6))
+    batch.initial_speed_mps[:] = [3.0, 8.0, 15.0, 30.0]
+    stepped = Simulator(plant, batch, pressure_source(), step_s)
+    rng = np.random.default_rng(5)
+    whole = Simulator(plant, batch, pressure_source(), step_s)
+    discs, trains, movings = whole.trajectory(n_steps)
+    for step in range(n_steps):
+        stepped.step()
+        np.testing.assert_array_equal(discs[step], stepped.disc)
+        np.testing.assert_array_equal(trains[step], stepped.train)
+        np.testing.assert_array_equal(movings[step], stepped.moving)
+    assert movings[0].all() and not movings[-1][0]  # the slowest train stopped within the run
+    np.testing.assert_array_equal(whole.stop_time_s, stepped.stop_time_s)
+    np.testing.assert_array_equal(whole.pressure.pressure_bar, stepped.pressure.pressure_bar)
+    assert whole.step_index == stepped.step_index == n_steps
 
 
 def test_kernel_cache_stamp_covers_the_physics_sources(tmp_path):

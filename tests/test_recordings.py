@@ -20,7 +20,9 @@ from brakegym.recordings import (
     write_recording,
 )
 from brakegym.recordings.measurement import first_order_lag
-from brakegym.recordings.replay import compare, kinematic_consistency, replay, replay_batch
+import brakegym.recordings.replay as replay_module
+from brakegym.recordings.effects import FrictionLevel, Gradient
+from brakegym.recordings.replay import compare, kinematic_consistency, replay, replay_batch, simulate_grid
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 N_AXLES = 8
@@ -228,6 +230,30 @@ def test_replay_one_by_one_equals_the_batch(clean_set):
     batch = replay_batch(recordings[:2], effects)
     single = replay(recordings[1], effects)
     pd.testing.assert_frame_equal(batch[1].simulated, single.simulated, check_exact=False, rtol=1e-12, atol=1e-12)
+
+
+def test_replay_in_one_compiled_call_equals_the_step_loop(clean_set, monkeypatch):
+    """A replay without state-dependent hooks runs its steps in one compiled call
+    (``simulate_steps``); the step-by-step loop of ``simulate_grid`` gives the same numbers, bit
+    for bit (a friction level per recording and a gradient are constant hooks)."""
+    recordings, _, _ = clean_set
+    effects = [Gradient(gradient_permil=-4.0), FrictionLevel(mu_scale=np.linspace(0.9, 1.1, len(recordings)))]
+    fast = replay_batch(recordings, effects)
+    loops = []
+
+    def step_loop(model, pressure, step_s, n_steps):
+        loops.append(n_steps)
+        return simulate_grid(model, pressure, step_s, lambda sim: sim.step_index >= n_steps)
+
+    monkeypatch.setattr(replay_module, "simulate_steps", step_loop)
+    looped = replay_batch(recordings, effects)
+    assert loops and loops[0] > 100
+    for a, b in zip(fast, looped):
+        assert a.channels.keys() == b.channels.keys()
+        for name in a.channels:
+            np.testing.assert_array_equal(a.channels[name], b.channels[name], err_msg=name)
+        pd.testing.assert_frame_equal(a.states, b.states, check_exact=True)
+        assert a.stop_time_s == b.stop_time_s or (np.isnan(a.stop_time_s) and np.isnan(b.stop_time_s))
 
 
 def test_nuisance_initial_state_overrides(clean_set):
