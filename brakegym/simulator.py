@@ -576,10 +576,11 @@ class Simulator:
         return record
 
     def trajectory(self, n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Advance by ``n_steps`` steps as :meth:`step` does, and return the state after each:
-        disc states (n_steps, 6, A, k, B), train states (n_steps, 6, B) and moving (n_steps, B);
-        the last rows are the simulator's state (read them, do not write to them). Without
-        state-dependent hooks and with a commanded or prescribed pressure in one compiled call."""
+        """Advance by ``n_steps`` steps as :meth:`step` does, and return the states at every
+        step, the current one first: disc states (n_steps + 1, 6, A, k, B), train states
+        (n_steps + 1, 6, B) and moving (n_steps + 1, B); the last rows are the simulator's state
+        (read them, do not write to them). Without state-dependent hooks and with a commanded or
+        prescribed pressure in one compiled call."""
         if n_steps < 1:
             raise ValueError(f"n_steps = {n_steps}: must be at least 1")
         if self.has_hooks or not isinstance(self.pressure, (CommandedPressure, PrescribedPressure)):
@@ -588,7 +589,7 @@ class Simulator:
         return discs, trains, movings
 
     def _trajectory_stepwise(self, n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        discs, trains, movings = [], [], []
+        discs, trains, movings = [self.disc], [self.train], [self.moving]
         for _ in range(n_steps):
             self.step()
             discs.append(self.disc)
@@ -600,12 +601,19 @@ class Simulator:
         self, n_steps: int, keep_every_step: bool = False
     ) -> tuple[StepRecord, np.ndarray, np.ndarray, np.ndarray]:
         """``n_steps`` steps in one kernel call (one step for a pressure source that is neither
-        commanded nor prescribed); the record of the last and the state buffers."""
+        commanded nor prescribed); the record of the last and the state buffers (with
+        ``keep_every_step``, the states at every step, the current one first)."""
         n, axles = self.n_trains, self.plant.n_axles
         disc0, train0, moving0 = self.disc, self.train, self.moving
         buffers = n_steps if keep_every_step else min(n_steps, 2)
-        discs, trains = np.empty((buffers, *disc0.shape)), np.empty((buffers, *train0.shape))
-        movings = np.empty((buffers, n), dtype=bool)
+        # With every step kept, the kernel writes behind a first row that holds the current state.
+        first = 1 if keep_every_step else 0
+        all_discs = np.empty((first + buffers, *disc0.shape))
+        all_trains = np.empty((first + buffers, *train0.shape))
+        all_movings = np.empty((first + buffers, n), dtype=bool)
+        if keep_every_step:
+            all_discs[0], all_trains[0], all_movings[0] = disc0, train0, moving0
+        discs, trains, movings = all_discs[first:], all_trains[first:], all_movings[first:]
         stop_fraction = np.empty(n)
         clamp = np.empty((2, axles, 1, n))
         commanded = self.pressure if isinstance(self.pressure, CommandedPressure) else None
@@ -644,7 +652,7 @@ class Simulator:
             self.pressure.advance()
         self.step_index += n_steps
         self.last_step = record
-        return record, discs, trains, movings
+        return record, all_discs, all_trains, all_movings
 
     @property
     def _no_cylinders(self) -> tuple[np.ndarray, ...]:

@@ -395,8 +395,10 @@ def test_trajectory_in_one_call_is_step_by_step_bit_for_bit(plant, source):
     rng = np.random.default_rng(5)
     whole = Simulator(plant, batch, pressure_source(), step_s)
     discs, trains, movings = whole.trajectory(n_steps)
-    for step in range(n_steps):
-        stepped.step()
+    assert len(discs) == len(trains) == len(movings) == n_steps + 1
+    for step in range(n_steps + 1):
+        if step:
+            stepped.step()
         np.testing.assert_array_equal(discs[step], stepped.disc)
         np.testing.assert_array_equal(trains[step], stepped.train)
         np.testing.assert_array_equal(movings[step], stepped.moving)

@@ -72,10 +72,13 @@ def simulate_grid(
     """Run ``model`` from t = 0 until ``finished(sim)`` and keep the states at every step.
     ``before_step(sim)`` may set commands (a :class:`~brakegym.applications.CommandSchedule`)."""
     sim = model.simulator(pressure, step_s)
-    rows: dict[str, list[np.ndarray]] = {name: [] for name in ("speed", "position", "decel", "T", "heat", "mu", "clamp", "p")}
+    discs, trains, decels, pressures = [], [], [], []
 
     def keep() -> None:
-        _keep_state(sim, sim.disc, sim.train, sim.deceleration_mps2(), np.array(sim.pressure.pressure_bar, dtype=float), rows)
+        discs.append(sim.disc.copy())
+        trains.append(sim.train.copy())
+        decels.append(sim.deceleration_mps2())
+        pressures.append(np.array(sim.pressure.pressure_bar, dtype=float))
 
     keep()
     while not finished(sim):
@@ -85,7 +88,7 @@ def simulate_grid(
             before_step(sim)
         sim.step()
         keep()
-    return _grid(sim, step_s, rows)
+    return _grid(sim, step_s, np.stack(discs), np.stack(trains), np.stack(decels), np.stack(pressures))
 
 
 def simulate_steps(model: EffectedModel, pressure: PrescribedPressure, step_s: float, n_steps: int) -> GridTrajectory:
@@ -97,40 +100,26 @@ def simulate_steps(model: EffectedModel, pressure: PrescribedPressure, step_s: f
         return simulate_grid(model, pressure, step_s, finished=lambda s: s.step_index >= n_steps)
     if (n_steps - 1) * step_s > MAX_STOP_TIME_S:  # where simulate_grid's loop would stop
         raise RuntimeError(f"simulation still running after {MAX_STOP_TIME_S} s")
-    pressures_bar = pressure.half_step_pressures_bar(n_steps)[0::2]  # (n_steps + 1, B, A) at the steps
-    rows: dict[str, list[np.ndarray]] = {name: [] for name in ("speed", "position", "decel", "T", "heat", "mu", "clamp", "p")}
-    _keep_state(sim, sim.disc, sim.train, sim.deceleration_mps2(), pressures_bar[0], rows)
+    pressures = pressure.half_step_pressures_bar(n_steps)[0::2]  # (n_steps + 1, B, A), at the steps
     discs, trains, movings = sim.trajectory(n_steps)
-    for step, (disc, train, moving) in enumerate(zip(discs, trains, movings), start=1):
-        decel = sim.deceleration_at_mps2(disc, train, moving, pressures_bar[step])
-        _keep_state(sim, disc, train, decel, pressures_bar[step], rows)
-    return _grid(sim, step_s, rows)
+    decels = np.stack([sim.deceleration_at_mps2(*state) for state in zip(discs, trains, movings, pressures)])
+    return _grid(sim, step_s, discs, trains, decels, pressures)
 
 
-def _keep_state(sim: Simulator, disc: np.ndarray, train: np.ndarray, decel: np.ndarray, pressure_bar: np.ndarray, rows) -> None:
-    """One row of each grid series from a state of ``sim``'s trains (copies)."""
-    n_discs = sim.plant.n_discs
-    rows["speed"].append(train[SPEED_STATE].copy())
-    rows["position"].append(train[POSITION_STATE].copy())
-    rows["decel"].append(decel)
-    rows["T"].append(disc[T_FRIC].reshape(n_discs, -1).copy())
-    rows["heat"].append(disc[FRICTION_HEAT].reshape(n_discs, -1).copy())
-    rows["mu"].append(sim.plant.friction.bounded(disc[MU]).reshape(n_discs, -1))
-    rows["clamp"].append(sim.clamp_force_N(pressure_bar)[:, 0, :].copy())
-    rows["p"].append(pressure_bar.T.copy())
-
-
-def _grid(sim: Simulator, step_s: float, rows: dict[str, list[np.ndarray]]) -> GridTrajectory:
+def _grid(sim: Simulator, step_s: float, discs: np.ndarray, trains: np.ndarray, decels: np.ndarray, pressures: np.ndarray) -> GridTrajectory:
+    """The grid series from the states at every step: discs (T, 6, A, k, B), trains (T, 6, B),
+    decelerations (T, B), cylinder pressures (T, B, A)."""
+    n_rows, n_discs = len(discs), sim.plant.n_discs
     return GridTrajectory(
         time_s=np.arange(sim.step_index + 1) * step_s,
-        speed_mps=np.stack(rows["speed"]),
-        position_m=np.stack(rows["position"]),
-        decel_mps2=np.stack(rows["decel"]),
-        friction_temperature_K=np.stack(rows["T"]),
-        friction_heat_J=np.stack(rows["heat"]),
-        clamp_force_N=np.stack(rows["clamp"]),
-        pressure_bar=np.stack(rows["p"]),
-        mu=np.stack(rows["mu"]),
+        speed_mps=np.ascontiguousarray(trains[:, SPEED_STATE]),
+        position_m=np.ascontiguousarray(trains[:, POSITION_STATE]),
+        decel_mps2=decels,
+        friction_temperature_K=np.ascontiguousarray(discs[:, T_FRIC]).reshape(n_rows, n_discs, -1),
+        friction_heat_J=np.ascontiguousarray(discs[:, FRICTION_HEAT]).reshape(n_rows, n_discs, -1),
+        clamp_force_N=np.ascontiguousarray(sim.plant.caliper.clamp_force_N(pressures).transpose(0, 2, 1)),
+        pressure_bar=np.ascontiguousarray(pressures.transpose(0, 2, 1)),
+        mu=sim.plant.friction.bounded(discs[:, MU]).reshape(n_rows, n_discs, -1),
         stop_time_s=sim.stop_time_s.copy(),
     )
 
