@@ -307,7 +307,18 @@ class PrescribedPressure:
         times = np.empty(2 * n_steps + 1)
         times[0::2] = starts
         times[1::2] = starts[:-1] + 0.5 * self.step_s
-        return np.stack([self._interpolated(float(t)) for t in times])
+        # _interpolated for all the times at once: the same elementwise arithmetic.
+        last = len(self.time_s) - 1
+        index = np.searchsorted(self.time_s, times, side="right") - 1
+        inside = (index >= 0) & (index < last)
+        lower = np.clip(index, 0, last - 1) if last > 0 else np.zeros_like(index)
+        upper = np.minimum(lower + 1, last)
+        weight = np.zeros(len(times))
+        weight[inside] = (times[inside] - self.time_s[lower[inside]]) / (self.time_s[upper[inside]] - self.time_s[lower[inside]])
+        rows = self.trace_bar[lower] + weight[:, None, None] * (self.trace_bar[upper] - self.trace_bar[lower])
+        rows[index < 0] = self.trace_bar[0]
+        rows[index >= last] = self.trace_bar[-1]
+        return rows
 
     def advance(self) -> None:
         self._step += 1
