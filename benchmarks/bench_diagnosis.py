@@ -91,7 +91,7 @@ def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, ar
     return {
         "index": index, "seed": seed, "recordings": recordings, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
         "selected": selected, "parameters": report["parameters"], "ci95": chosen["ci95"] if chosen else {},
-        "indistinguishable": report["indistinguishable"], "unconfirmed": [u["effects"] for u in report["unconfirmed"]], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
+        "indistinguishable": report["indistinguishable"], "signature_correlations": report["signature_correlations"], "unconfirmed": [u["effects"] for u in report["unconfirmed"]], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
         # What a change to the selection rules can be judged on again without diagnosing anew.
         "chi2_eff_unmodified": report["chi2_eff_unmodified"], "screening": report["screening"],
         "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],

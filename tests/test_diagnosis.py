@@ -174,6 +174,8 @@ def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_
         pair = [report["selected"][0], "brake_unit_failure"]
         assert pair in report["indistinguishable"], report["indistinguishable"]
         assert "rear disc" in report["separating_measurements"][" / ".join(pair)]
+        # Confounders: their corrections to the unmodified model have nearly the same shape.
+        assert report["signature_correlations"][" / ".join(pair)] > 0.8
 
 
 def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path):

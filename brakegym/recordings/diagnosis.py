@@ -327,6 +327,16 @@ class Diagnoser:
     def _chi2(self, residual: np.ndarray) -> float:
         return float(np.sum(self.weights * residual**2))
 
+    def _signature_correlation(self, base_residual: np.ndarray, first: np.ndarray, second: np.ndarray) -> float:
+        """How alike the data see two fitted candidates: the cosine between their changes to the
+        unmodified model's residual over the measured rows (effective weights; each fit's own
+        nuisance included). Near 1, the two corrections have the same shape in every channel."""
+        rows = self.problem.channel_of >= 0
+        weights = self.weights[rows]
+        a, b = (base_residual - first)[rows], (base_residual - second)[rows]
+        norm = math.sqrt(float(np.sum(weights * a * a)) * float(np.sum(weights * b * b)))
+        return float(np.sum(weights * a * b)) / norm if norm > 0 else math.nan
+
     # -- screening -------------------------------------------------------------------------
     def _screen_starts(self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray, nuisance: np.ndarray) -> np.ndarray:
         """The nuisance each screened point starts from: the unmodified model's, with the
@@ -626,6 +636,7 @@ class Diagnoser:
         # thousands, with held-out errors 1-8 % apart and paired t 0.4-0.7 (one of them the wrong
         # effect selected with nothing said).
         indistinguishable = []
+        signature_correlations: dict[str, float] = {}
         if selected is not None and len(selected.effect_ids) == 1:
             best_sse = float(np.sum(selected.heldout_sse))
             for other in passing:
@@ -636,6 +647,9 @@ class Diagnoser:
                 difference = (other.heldout_sse - selected.heldout_sse) / np.maximum(base_sse, 1e-12)
                 if close and (similar_bic or not _paired_t(difference) >= HELDOUT_MIN_T):
                     indistinguishable.append([selected.effect_ids[0], other.effect_ids[0]])
+                    signature_correlations[f"{selected.effect_ids[0]} / {other.effect_ids[0]}"] = round(
+                        self._signature_correlation(baseline.residual, selected.fit.residual, other.fit.residual), 3
+                    )
 
         # An effect that fits the one or two recordings it acts on far better cannot pass a paired
         # t over recordings (the blind benchmark's fades that only the hottest one or two stops of
@@ -709,6 +723,7 @@ class Diagnoser:
             "separating_measurements": {
                 " / ".join(pair): SEPARATING_MEASUREMENT.get(frozenset(pair), DEFAULT_SEPARATION) for pair in indistinguishable
             },
+            "signature_correlations": signature_correlations,
             "unconfirmed": [_unconfirmed_entry(c) for c in unconfirmed],
             "unexplained": unexplained["text"] if unexplained else None,
             "unexplained_fit": unexplained,
@@ -780,7 +795,11 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
             f"residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
         )
         if report["indistinguishable"]:
-            pairs = "; ".join(f"{a} and {b}: {report['separating_measurements'][a + ' / ' + b]}" for a, b in report["indistinguishable"])
+            pairs = "; ".join(
+                f"{a} and {b} (their corrections to the model correlate {report['signature_correlations'][a + ' / ' + b]:.2f}): "
+                f"{report['separating_measurements'][a + ' / ' + b]}"
+                for a, b in report["indistinguishable"]
+            )
             text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
         return text
     if report["unexplained"]:

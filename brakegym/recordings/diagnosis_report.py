@@ -106,13 +106,17 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
     attribution_rows = [["residual", *next(iter(attribution.values())).keys()]] if attribution else []
     for name, shares in attribution.items():
         attribution_rows.append([name, *(f"{v:.3f}" for v in shares.values())])
+    indistinguishable = "; ".join(
+        f"{name} (corrections correlate {report['signature_correlations'][name]:.2f})"
+        for name in (" / ".join(pair) for pair in report["indistinguishable"])
+    )
     parts = [
         f"# Diagnosis of `{dataset_name}`",
         "",
         report["summary"],
         "",
         f"**Selected:** {', '.join(report['selected']) or 'nothing'}. **Indistinguishable:** "
-        f"{'; '.join(' / '.join(p) for p in report['indistinguishable']) or 'none'}. **Unconfirmed** (fits the "
+        f"{indistinguishable or 'none'}. **Unconfirmed** (fits the "
         f"few recordings it acts on, too few to confirm held out): "
         f"{'; '.join(' + '.join(u['effects']) for u in report['unconfirmed']) or 'none'}.",
         "",
