@@ -101,7 +101,8 @@ def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, ar
 def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: float) -> None:
     hits, totals = Counter(), Counter()
     confusion: dict[str, Counter] = defaultdict(Counter)
-    recovery: dict[str, list[tuple[float, float, bool]]] = defaultdict(list)
+    # (truth, fitted, inside the interval, exactly the effects drawn selected)
+    recovery: dict[str, list[tuple[float, float, bool, bool]]] = defaultdict(list)
     for row in rows:
         totals[row["kind"]] += 1
         hits[row["kind"]] += row["hit"]
@@ -114,7 +115,10 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
                 if name in row["parameters"] and name in row["ci95"]:
                     low, high = row["ci95"][name]
                     recovery[f"{effect['id']}.{name}"].append(
-                        (float(true_value), float(row["parameters"][name]), bool(low <= true_value <= high))
+                        (
+                            float(true_value), float(row["parameters"][name]), bool(low <= true_value <= high),
+                            sorted(row["selected"]) == sorted(e["id"] for e in row["truth"]),
+                        )  # fmt: skip
                     )
     print()
     for kind in ("single", "pair", "none"):
@@ -150,12 +154,15 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
     for truth_label in sorted(confusion):
         print(f"  {truth_label:40s} " + ", ".join(f"{k}: {v}" for k, v in confusion[truth_label].most_common()))
     if recovery:
-        print("\nparameter recovery where the effect was selected (median |fitted - truth| / |truth|; truth inside the 95 % interval):")
+        print("\nparameter recovery where the effect was selected (median |fitted - truth| / |truth|; truth inside the 95 % interval,\n"
+              "in all those sets and in those where exactly the effects drawn were selected, the model then being right):")
         for name in sorted(recovery):
             values = recovery[name]
-            errors = [abs(f - t) / max(abs(t), 1e-9) for t, f, _ in values]
-            covered = sum(c for _, _, c in values)
-            print(f"  {name:40s} n={len(values):3d}  median error {100 * float(np.median(errors)):5.1f} %  covered {covered}/{len(values)}")
+            errors = [abs(f - t) / max(abs(t), 1e-9) for t, f, _, _ in values]
+            covered = sum(c for _, _, c, _ in values)
+            exact = [c for _, _, c, right in values if right]
+            print(f"  {name:40s} n={len(values):3d}  median error {100 * float(np.median(errors)):5.1f} %  covered {covered}/{len(values)}"
+                  f"  (exact model: {sum(exact)}/{len(exact)})")
     # Rows written before the count was recorded hold the default.
     counts = sorted({row.get("recordings", DEFAULT_RECORDINGS) for row in rows})
     shown = "/".join(str(c) for c in counts)
