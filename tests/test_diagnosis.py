@@ -150,6 +150,19 @@ def test_a_sensor_scale_that_helps_two_recordings_and_worsens_others_is_not_sele
     assert worsened and worsened <= counted, (worsened, counted)
 
 
+def test_recovers_a_speed_sensor_scale_on_fast_stops(tmp_path):
+    # A wheel that reads 4.5 % slow: the true initial speed of a 150 km/h stop lies 2 m/s above
+    # the measured one. With the initial speeds fitted in true units and bounded 1.5 m/s around
+    # the measured ones, the scale was pulled to 0.965 and its interval missed the truth.
+    result = synthesize(tmp_path / "set", 8, seed=11, effects=[EffectRequest("speed_sensor_scale", {"scale": 0.955})])
+    report = diagnose(result.folder, top_singles=1, pairs_from=0).report
+    assert report["selected"] == ["speed_sensor_scale"], report["summary"]
+    assert report["parameters"]["scale"] == pytest.approx(0.955, abs=0.003)
+    chosen = next(c for c in report["candidates"] if c["effects"] == report["selected"])
+    low, high = chosen["ci95"]["scale"]
+    assert low <= 0.955 <= high
+
+
 def test_names_four_failed_brake_units(tmp_path):
     # Four of sixteen units fail: the unmodified fit's friction factors sink to about 0.75, and
     # screening must start the failure's nuisance from factors rescaled by the force it leaves

@@ -3,8 +3,12 @@
 The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]``:
 
 - the effect parameters are shared by every recording (a set-wide effect, inside its bounds);
-- ``v0``: each recording's true initial speed, ``T0``: its initial disc temperature (nuisance
-  parameters: an initial-state error must not pose as an effect);
+- ``v0``: each recording's initial speed as its speed sensor reads it (the true initial speed
+  times a ``speed_sensor_scale`` in the fit), ``T0``: its initial disc temperature (nuisance
+  parameters: an initial-state error must not pose as an effect). In sensor units the bounds
+  around the measured initial speed hold whatever the scale: in true units a scale of 0.955 put
+  the initial speed of a 150 km/h stop 2 m/s above the measured one, beyond the bounds, and the
+  fitted scale was pulled to 0.965 with an interval that missed the truth;
 - ``k``: each recording's friction factor, the friction scatter between applications (MCS: a
   global draw per application). It is held to 1 by a Gaussian prior of the scatter's size, so a
   shift shared by all recordings costs n times the prior: only a set-wide effect (a friction
@@ -32,7 +36,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .. import config as cfg
-from .effects import EFFECTS, FrictionLevel, ParameterSpec
+from .effects import EFFECTS, FrictionLevel, ParameterSpec, SpeedSensorScale
 from .format import DECEL, DISC_TEMPERATURE, SPEED, Recording
 from .replay import STANDSTILL_SPEED_MPS, Replay, replay_batch, standstill_index
 
@@ -200,7 +204,8 @@ class FitProblem:
             effects.append(EFFECTS[eid](**values[eid]))
         lower, upper = FrictionLevel.parameters[0].lower, FrictionLevel.parameters[0].upper
         effects.append(FrictionLevel(mu_scale=np.clip(k, lower, upper)))
-        replays = replay_batch(self.recordings * m, effects, initial_speed_mps=v0, initial_disc_C=T0)
+        true_v0 = v0 / values[SpeedSensorScale.id]["scale"] if SpeedSensorScale.id in values else v0
+        replays = replay_batch(self.recordings * m, effects, initial_speed_mps=true_v0, initial_disc_C=T0)
         self.simulations += m * n
         residuals = np.empty((m, len(self.recording_of)))
         grouped = []
