@@ -181,13 +181,17 @@ def drawn_jobs(seed: int, sets: int, free_share: float, recordings: int):
         yield index, set_seed, free, offset, recordings
 
 
-def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None, single: bool = False):
+def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None, single: bool = False,
+               set_seeds: list[int] | None = None):
     """The sets of earlier rows again (same seeds, same bytes), those whose drawn effects include
     one of ``where`` (``none``: the effect-free sets), with ``single`` only the one-effect sets,
-    for a check of a change to the diagnosis on the sets it is about, without the whole benchmark."""
+    with ``set_seeds`` only the sets of those seeds, for a check of a change to the diagnosis on
+    the sets it is about, without the whole benchmark."""
     count = 0
     for path in paths:
         for row in json.loads(Path(path).read_text()):
+            if set_seeds and row["seed"] not in set_seeds:
+                continue
             ids = [e["id"] for e in row["truth"]]
             if where and not any((w == "none" and not ids) or w in ids for w in where):
                 continue
@@ -209,6 +213,7 @@ def main() -> None:
                         help="with --rerun: sets whose drawn effects include EFFECT, or effect-free ones (repeatable)")
     parser.add_argument("--max-sets", type=int, help="with --rerun: at most this many sets")
     parser.add_argument("--single", action="store_true", help="with --rerun: only the sets with one effect")
+    parser.add_argument("--set-seed", type=int, action="append", help="with --rerun: only the set of this seed (a row's 'seed')")
     parser.add_argument("--sets", type=int)
     parser.add_argument("--seed", type=int)
     parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
@@ -224,7 +229,7 @@ def main() -> None:
         summarize(rows, args, sum(row["seconds"] for row in rows))
         return
     if args.rerun:
-        jobs = list(rerun_jobs(args.rerun, args.where, args.max_sets, args.single))
+        jobs = list(rerun_jobs(args.rerun, args.where, args.max_sets, args.single, args.set_seed))
     elif args.sets is None or args.seed is None:
         parser.error("--sets and --seed are required unless --summarize or --rerun is given")
     else:
