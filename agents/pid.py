@@ -14,22 +14,22 @@ from typing import Any, Mapping
 import numpy as np
 from pydantic import Field
 
-from brakegym import config as cfg
-from brakegym.applications import train_plant
-from brakegym.envs.config import BrakeEnvConfig
+from .. import config as cfg
+from ..envs.config import BrakeEnvConfig
+from ..plants import train_plant
 
 
-class StationStopPlanner(cfg._Strict):
+class StationStopPlanner(cfg.StrictModel):
     stop_offset_m: float
     min_distance_m: float = Field(gt=0)
 
 
-class EmergencyLimiter(cfg._Strict):
+class EmergencyLimiter(cfg.StrictModel):
     temperature_margin_C: float = Field(ge=0)
     temperature_band_C: float = Field(gt=0)
 
 
-class PIDConfig(cfg._Strict):
+class PIDConfig(cfg.StrictModel):
     name: str
     nominal_mu: float = Field(gt=0)
     proportional_gain: float = Field(ge=0)
@@ -41,8 +41,8 @@ class PIDConfig(cfg._Strict):
 
 
 def load_pid_config(path: str | Path | None = None) -> PIDConfig:
-    """``configs/agents/pid.yaml`` or the file given, validated."""
-    return cfg.load_file(path or cfg.config_dir() / "agents" / "pid.yaml", PIDConfig)
+    """``agents/pid.yaml`` on the config search path, or the file given, validated."""
+    return cfg.load_file(path or cfg.find("agents", "pid"), PIDConfig)
 
 
 class PIDController:

@@ -1,13 +1,21 @@
 """stable-baselines3 agents (PPO, SAC) on the batched brakegym environments.
 
-Hyperparameters live in ``configs/agents/<algo>.yaml`` (RL Zoo style, one entry per environment).
-Training runs N trains in one :class:`~brakegym.envs.BrakeVectorEnv` handed to SB3 through
+Hyperparameters live in ``configs/agents/<algo>.yaml`` in rl_zoo3's format: one entry per
+environment id, which rl_zoo3 reads as it is
+(``python -m rl_zoo3.train --algo ppo --env brakegym/StationStop-v0 --gym-packages brakegym
+--conf-file ppo.yaml``). Training here runs N trains in one
+:class:`~brakegym.envs.BrakeVectorEnv` handed to SB3 through
 :class:`~brakegym.envs.sb3.SB3VecEnv`, with ``VecNormalize``, an evaluation callback on a separate
 batch of trains, a progress bar and an optional wall-clock budget. A trained agent is a folder:
 ``model.zip``, ``vecnormalize.pkl`` (the observation statistics) and ``training.json`` (what
 produced it).
 
-Besides the algorithm's own, an entry may hold:
+brakegym's own settings of a run live under the file's top-level ``brakegym`` key, per
+environment id, where rl_zoo3 does not read them (it would pass unknown keys of an entry to the
+algorithm and fail):
+
+``eval_freq_steps``, ``n_eval_episodes``
+    how often and on how many trains the evaluation callback runs;
 
 ``env_config``
     overrides of the environment's config for training and evaluation during training (e.g.
@@ -33,18 +41,25 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from brakegym import config as cfg
-from brakegym.stress import make_vector_env
+from importlib import resources
+from importlib.resources.abc import Traversable
+
+from .. import config as cfg
+from ..envs.registry import full_env_id
+from ..stress import make_vector_env
 
 ALGORITHMS = ("ppo", "sac", "ppo-residual")
-# Keys of the hyperparameter files that configure the set-up rather than the algorithm.
-SETUP_KEYS = (
-    "n_envs", "n_timesteps", "policy", "normalize", "eval_freq_steps", "n_eval_episodes",
-    "env_config", "residual", "jerk_shaping",
-)
-SHIPPED_POLICIES = Path(__file__).resolve().parent / "policies"
+# Keys of an entry that configure the run rather than the algorithm (rl_zoo3 takes them too).
+ZOO_SETUP_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
+# brakegym's own keys, allowed only in the file's ``brakegym`` section.
+BRAKEGYM_KEYS = ("eval_freq_steps", "n_eval_episodes", "env_config", "residual", "jerk_shaping")
+OWN_SECTION = "brakegym"
+
+
+def shipped_policies() -> Traversable:
+    """The folder of the trained policies that ship with brakegym (one agent folder each)."""
+    return resources.files(__package__).joinpath("policies")
 
 
 def _torch_single_thread() -> None:
@@ -60,25 +75,34 @@ def short_env_id(env_id: str) -> str:
 
 
 def load_hyperparameters(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The entry for ``env_id`` in ``configs/agents/<algo>.yaml`` (or ``path``)."""
+    """The entry for ``env_id`` in ``agents/<algo>.yaml`` on the config search path (or ``path``),
+    with brakegym's own settings for it from the file's ``brakegym`` section."""
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; choose one of {ALGORITHMS}")
-    path = Path(path) if path else cfg.config_dir() / "agents" / f"{algo}.yaml"
-    try:
-        entries = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise cfg.ConfigError(f"{path}: cannot read hyperparameters: {exc}") from exc
-    key = short_env_id(env_id)
-    if not isinstance(entries, dict) or key not in entries:
-        known = sorted(entries) if isinstance(entries, dict) else []
-        raise cfg.ConfigError(f"{path}: no entry {key!r}; entries: {known}")
+    source = Path(path) if path else cfg.find("agents", algo)
+    entries = cfg.read_yaml(source)
+    key = full_env_id(env_id)
+    if key not in entries:
+        known = sorted(k for k in entries if k != OWN_SECTION)
+        raise cfg.ConfigError(f"{source}: no entry {key!r}; entries: {known}")
     hyper = dict(entries[key])
+    misplaced = sorted(set(hyper) & set(BRAKEGYM_KEYS))
+    if misplaced:
+        raise cfg.ConfigError(
+            f"{source}: entry {key!r} holds brakegym's own key(s) {misplaced}: they belong under "
+            f"'{OWN_SECTION}: {key}:', where rl_zoo3 does not read them"
+        )
+    own = dict((entries.get(OWN_SECTION) or {}).get(key) or {})
+    unknown = sorted(set(own) - set(BRAKEGYM_KEYS))
+    if unknown:
+        raise cfg.ConfigError(f"{source}: '{OWN_SECTION}: {key}:' has unknown key(s) {unknown}; allowed {list(BRAKEGYM_KEYS)}")
+    hyper.update(own)
     rate = hyper.get("learning_rate")
     if isinstance(rate, str):
-        _learning_rate(rate, f"{path}: entry {key!r}")  # refuse a bad schedule now, not after setup
-    missing = [k for k in ("n_envs", "n_timesteps", "policy") if k not in hyper]
+        _learning_rate(rate, f"{source}: entry {key!r}")  # refuse a bad schedule now, not after setup
+    missing = [k for k in ZOO_SETUP_KEYS[:3] if k not in hyper]
     if missing:
-        raise cfg.ConfigError(f"{path}: entry {key!r} lacks field(s) {missing}")
+        raise cfg.ConfigError(f"{source}: entry {key!r} lacks field(s) {missing}")
     return hyper
 
 
@@ -120,7 +144,7 @@ def _wrappers():
         """The policy's action is a correction to the PID's command, scaled by ``scale``."""
 
         def __init__(self, venv: Any, gains: Any, scale: float):
-            from agents.pid import PIDController
+            from .pid import PIDController
 
             self.brake_env = venv.env  # the BrakeVectorEnv inside SB3VecEnv
             self.pid = PIDController(self.brake_env.config, self.brake_env.observation_names, gains)
@@ -183,7 +207,7 @@ def _vec_env(
 ):
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from brakegym.envs.sb3 import SB3VecEnv
+    from ..envs.sb3 import SB3VecEnv
 
     ResidualPID, JerkShaping = _wrappers()
     venv = SB3VecEnv(make_vector_env(env_id, n_envs, setup, env_config, autoreset=True))
@@ -244,7 +268,7 @@ def train(
     from stable_baselines3.common.vec_env import VecNormalize
 
     hyper = load_hyperparameters(algo, env_id, hyperparameters)
-    algo_kwargs = {k: v for k, v in hyper.items() if k not in SETUP_KEYS}
+    algo_kwargs = {k: v for k, v in hyper.items() if k not in ZOO_SETUP_KEYS + BRAKEGYM_KEYS}
     if "learning_rate" in algo_kwargs:
         algo_kwargs["learning_rate"] = _learning_rate(algo_kwargs["learning_rate"])
     n_envs = int(hyper["n_envs"])
@@ -258,7 +282,7 @@ def train(
     if residual:
         if residual.get("base") != "pid" or not float(residual.get("scale", 0)) > 0:
             raise cfg.ConfigError(f"residual = {residual}: need base: pid and a positive scale")
-        from agents.pid import load_pid_config
+        from .pid import load_pid_config
 
         pid_gains = load_pid_config()
     wrapping = {"residual": residual, "pid_gains": pid_gains, "jerk_shaping": hyper.get("jerk_shaping")}
@@ -334,17 +358,18 @@ class PolicyController:
     """A trained SB3 agent as a batch controller (deterministic actions on normalised
     observations), for evaluation and the stress harness."""
 
-    def __init__(self, agent_dir: str | Path):
+    def __init__(self, agent_dir: str | Path | Traversable):
         _torch_single_thread()
-        folder = Path(agent_dir)
-        meta_path = folder / "training.json"
+        import pickle
+
+        folder = agent_dir if isinstance(agent_dir, Traversable) else Path(agent_dir)
+        meta_path = folder.joinpath("training.json")
         if not meta_path.is_file():
             raise FileNotFoundError(f"{folder}: not an agent folder (no training.json)")
         self.meta = json.loads(meta_path.read_text())
-        self.model = _model_class(self.meta["algo"]).load(folder / "model.zip", device="cpu")
-        import pickle
-
-        with open(folder / "vecnormalize.pkl", "rb") as handle:
+        with resources.as_file(folder.joinpath("model.zip")) as model_path:
+            self.model = _model_class(self.meta["algo"]).load(model_path, device="cpu")
+        with folder.joinpath("vecnormalize.pkl").open("rb") as handle:
             self.normalizer = pickle.load(handle)  # VecNormalize without its env: the statistics
         self.name = f"{self.meta['algo']}:{folder.name}"
         self.residual = self.meta.get("residual")
@@ -354,7 +379,7 @@ class PolicyController:
         """Bind to a batched environment (a residual policy builds its PID base for it, with the
         gains it was trained with)."""
         if self.residual:
-            from agents.pid import PIDConfig, PIDController
+            from .pid import PIDConfig, PIDController
 
             gains = PIDConfig.model_validate(self.residual["pid_gains"])
             self.base = PIDController(env.config, env.observation_names, gains)

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from solve_ivp_baseline import solve_ivp_stop  # noqa: E402
 
 from brakegym import config as cfg  # noqa: E402
-from brakegym import kernel  # noqa: E402
+from brakegym.simulator import kernel  # noqa: E402
 from brakegym.applications import DEFAULT_STEP_S  # noqa: E402
 from brakegym.campaigns import field_applications, train_monte_carlo  # noqa: E402
 

@@ -42,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from brakegym.recordings.diagnosis import diagnose
-from brakegym.recordings.effects import EFFECTS
+from brakegym.diagnosis import diagnose
+from brakegym.effects import EFFECTS
 from brakegym.recordings.synth import synthesize
 
 DEFAULT_RECORDINGS = 8

@@ -20,12 +20,12 @@ import gymnasium as gym
 import numpy as np
 
 import brakegym  # noqa: F401
-from brakegym.envs import StationStopEnv, StationStopVectorEnv
+from brakegym.envs import BrakeEnv, BrakeVectorEnv
 
 
 def single_steps_per_s(steps: int, wrapped: bool) -> tuple[float, float]:
     """Steps per second of wall-clock time and of process CPU time."""
-    env = gym.make("brakegym/StationStop-v0") if wrapped else StationStopEnv()
+    env = gym.make("brakegym/StationStop-v0") if wrapped else BrakeEnv("station_stop")
     env.reset(seed=0)
     action = np.full(env.action_space.shape, 0.2, np.float32)
     started, started_cpu = time.perf_counter(), time.process_time()
@@ -59,10 +59,10 @@ def main() -> None:
     raw = [single_steps_per_s(args.steps, wrapped=False) for _ in range(args.repeats)]
     wrapped = single_steps_per_s(args.steps // 4, wrapped=True)
     native = [
-        vector_train_steps_per_s(StationStopVectorEnv(num_envs=args.trains), args.vector_steps)
+        vector_train_steps_per_s(BrakeVectorEnv("station_stop", num_envs=args.trains), args.vector_steps)
         for _ in range(args.repeats)
     ]
-    sync = gym.vector.SyncVectorEnv([StationStopEnv for _ in range(args.trains)])
+    sync = gym.vector.SyncVectorEnv([lambda: BrakeEnv("station_stop") for _ in range(args.trains)])
     baseline, _ = vector_train_steps_per_s(sync, max(args.vector_steps // 20, 20))
 
     def spread(rates: list[tuple[float, float]]) -> str:
@@ -71,10 +71,10 @@ def main() -> None:
         return f"{max(wall):10.0f} (CPU time {max(cpu):.0f}{runs})"
 
     best_raw, best_native = max(rate for rate, _ in raw), max(rate for rate, _ in native)
-    print(f"single env (StationStopEnv, unwrapped):        {spread(raw)} steps/s   (target 5,000: {best_raw / 5000:.2f}x)")
+    print(f"single env (BrakeEnv, unwrapped)    :        {spread(raw)} steps/s   (target 5,000: {best_raw / 5000:.2f}x)")
     print(f"single env (gymnasium.make, checker wrappers): {wrapped[0]:10.0f} steps/s")
     print(
-        f"batched, {args.trains} trains (StationStopVectorEnv):  {spread(native)} train-steps/s "
+        f"batched, {args.trains} trains (BrakeVectorEnv):  {spread(native)} train-steps/s "
         f"(target 500,000: {best_native / 5e5:.2f}x)"
     )
     print(f"baseline: SyncVectorEnv of {args.trains} single envs: {baseline:10.0f} train-steps/s")

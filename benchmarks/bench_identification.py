@@ -26,6 +26,7 @@ from brakegym.identification import DynoCurves, Series, dyno_curves_from_campaig
 from brakegym.identification.parameters import ParameterSpace
 from brakegym.identification.stochastic import dyno_spread_groups, field_spread_groups, identify_scatter
 from brakegym.physics import draw_friction, draw_running_resistance
+from brakegym.plants import scatter_partition, stochastic_friction
 
 TRUTH = {"a": 0.0092, "b": 0.0115, "c": 0.038, "d": 0.040, "x": 0.95, "y": 0.56, "z": 1.65, "r": 0.34,
          "C_fric": 6500.0, "C_disc": 26000.0, "G_ref": 760.0, "h_surf": 33.0}
@@ -76,13 +77,14 @@ def main() -> None:
 
     true = material.model_copy(update={"scatter": cfg.FrictionScatter(initial_mu_sigma=0.013, power_coefficient_sigma_per_s=0.0007)})
     cases = [case for case, _ in campaigns.dyno_applications(rig)]
-    draw = draw_friction(np.random.default_rng(11), true, cfg.load("setups", "mcs-100"), len(cases), (1, 1))
+    draw = draw_friction(np.random.default_rng(11), stochastic_friction(true), scatter_partition(cfg.load("setups", "mcs-100")), len(cases), (1, 1))
     dyno = pd.DataFrame({"load_case": [c.name for c in cases], "mu_s": dyno_stops(rig, cases, draw).mu_s[:, 0]})
     vehicle, setup = cfg.load("vehicles", "emu_8axle"), cfg.load("setups", "mcs-75-25")
     apps = [TrainApplication("empty", "emergency", "EP", v0) for v0 in (100.0, 160.0) for _ in range(60)]
     rng = np.random.default_rng(12)
-    tdraw = draw_friction(rng, true, setup, len(apps), (vehicle.n_axles, vehicle.discs_per_axle))
-    resistance = draw_running_resistance(rng, vehicle.running_resistance, setup, len(apps))
+    partition = scatter_partition(setup)
+    tdraw = draw_friction(rng, stochastic_friction(true), partition, len(apps), (vehicle.n_axles, vehicle.discs_per_axle))
+    resistance = draw_running_resistance(rng, vehicle.running_resistance.A_N, vehicle.running_resistance.A_sigma_N, partition, len(apps))
     train = pd.DataFrame({"brake_mode": "emergency", "load": "empty", "pad_set": "1", "actuation": "EP",
                           "v0_kmh": [a.initial_speed_kmh for a in apps], "mu_s_eff": train_stops(vehicle, apps, tdraw, resistance).mu_s_eff})
     dyno_groups = dyno_spread_groups(dyno, rig)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import brakegym.recordings.replay as replay_module
-from brakegym.recordings.effects import FrictionLevel, Gradient
+from brakegym.effects import FrictionLevel, Gradient
 from brakegym.recordings.format import read_dataset
 from brakegym.recordings.synth import EffectRequest, synthesize
 

@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from brakegym import config as cfg
-from brakegym.applications import KELVIN, train_plant
-from brakegym.physics import BrakeCylinder, draw_friction
+from brakegym.physics import draw_friction
+from brakegym.plants import brake_cylinder, scatter_partition, stochastic_friction, train_plant
+from brakegym.units import ZERO_CELSIUS_K
 from brakegym.simulator import BatchConditions, CommandedPressure, NumpyReferenceSimulator, Simulator
 
 REPO = Path(__file__).resolve().parent.parent
@@ -36,7 +37,13 @@ def braking_batch(n_trains: int, step_s: float, simulator_class: type[Simulator]
     vehicle = cfg.load("vehicles", "emu_8axle")
     plant = train_plant(vehicle)
     rng = np.random.default_rng(seed)
-    draw = draw_friction(rng, cfg.load("materials", vehicle.material), cfg.load("setups", "mcs-75-25"), n_trains, plant.disc_shape)
+    draw = draw_friction(
+        rng,
+        stochastic_friction(cfg.load("materials", vehicle.material)),
+        scatter_partition(cfg.load("setups", "mcs-75-25")),
+        n_trains,
+        plant.disc_shape,
+    )
     shape = (n_trains, *plant.disc_shape)
     conditions = BatchConditions(
         mass_kg=np.full(n_trains, vehicle.mass_kg("empty")),
@@ -44,11 +51,11 @@ def braking_batch(n_trains: int, step_s: float, simulator_class: type[Simulator]
         initial_mu=draw.initial_mu,
         power_coefficient_per_s=draw.power_coefficient_per_s,
         running_resistance_A_N=np.full(n_trains, vehicle.running_resistance.A_N),
-        initial_friction_temperature_K=np.full(shape, vehicle.initial_disc_temperature_C + KELVIN),
-        initial_disc_temperature_K=np.full(shape, vehicle.initial_disc_temperature_C + KELVIN),
-        ambient_temperature_K=np.full(n_trains, vehicle.ambient_temperature_C + KELVIN),
+        initial_friction_temperature_K=np.full(shape, vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K),
+        initial_disc_temperature_K=np.full(shape, vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K),
+        ambient_temperature_K=np.full(n_trains, vehicle.ambient_temperature_C + ZERO_CELSIUS_K),
     )
-    cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", "EP"))
+    cylinder = brake_cylinder(cfg.load("pneumatics", "EP"))
     pressure = CommandedPressure([cylinder] * n_trains, plant.n_axles, step_s, initial_pressure_bar=3.3)
     command = np.full((n_trains, plant.n_axles), 3.3)
     return simulator_class(plant, conditions, pressure, step_s), pressure, command

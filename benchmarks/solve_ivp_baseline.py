@@ -10,8 +10,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from brakegym import config as cfg
-from brakegym.applications import KELVIN, TrainApplication, train_plant
-from brakegym.physics import BrakeCylinder
+from brakegym.applications import TrainApplication
+from brakegym.plants import brake_cylinder, train_plant
+from brakegym.units import ZERO_CELSIUS_K
 
 
 def solve_ivp_stop(
@@ -24,10 +25,10 @@ def solve_ivp_stop(
 ) -> tuple[float, float]:
     """(stop time s, stop distance m) of one train stop; discs as flat arrays of length n."""
     plant = train_plant(vehicle)
-    cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", app.actuation))
+    cylinder = brake_cylinder(cfg.load("pneumatics", app.actuation))
     target_bar = vehicle.brake_pressure_bar(app.brake_mode, app.load)
     mass = vehicle.mass_kg(app.load)
-    ambient = vehicle.ambient_temperature_C + KELVIN
+    ambient = vehicle.ambient_temperature_C + ZERO_CELSIUS_K
     n = plant.n_discs
     a = power_coefficient.reshape(n)
     start = app.command_time_s + cylinder.dead_time_s
@@ -54,7 +55,7 @@ def solve_ivp_stop(
 
     standstill.terminal = True
     standstill.direction = -1
-    t0 = vehicle.initial_disc_temperature_C + KELVIN
+    t0 = vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K
     y0 = np.concatenate(([app.initial_speed_kmh / 3.6, 0.0], initial_mu.reshape(n), np.full(2 * n, t0)))
     # max_step keeps the solver from stepping over the brake onset at the command time.
     solution = solve_ivp(rhs, (0.0, 600.0), y0, method="RK45", rtol=rtol, atol=1e-9, events=standstill, max_step=0.5)

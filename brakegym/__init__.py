@@ -3,32 +3,26 @@
 Dynamic, stochastic coefficient of friction per disc, two-capacity disc temperatures, the
 dynamometer rig and a 16-disc multiple-unit train, integrated in batches; Gymnasium environments
 of the braking train (``brakegym/StationStop-v0``, ``brakegym/DecelTracking-v0``,
-``brakegym/EmergencyStop-v0``), registered on import.
+``brakegym/EmergencyStop-v0``, one module each in :mod:`brakegym.envs.tasks`), registered on
+import.
 """
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError, version
 
-# Gymnasium 1.x no longer registers through entry points; registering here makes both
-# ``import brakegym; gymnasium.make("brakegym/...")`` and
-# ``gymnasium.make("brakegym:brakegym/...")`` work. Entry points are strings so that importing
-# brakegym does not import the environments.
-ENVIRONMENT_IDS = {
-    "brakegym/StationStop-v0": "StationStop",
-    "brakegym/DecelTracking-v0": "DecelTracking",
-    "brakegym/EmergencyStop-v0": "EmergencyStop",
-}
+try:
+    __version__ = version("brakegym")
+except PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
 
 
 def _register_environments() -> None:
-    import gymnasium
+    # Gymnasium 1.x no longer registers through entry points; registering here makes both
+    # ``import brakegym; gymnasium.make("brakegym/...")`` and
+    # ``gymnasium.make("brakegym:brakegym/...")`` work. The registry imports only the light task
+    # modules, not the simulator.
+    from .envs.registry import register_environments
 
-    for env_id, stem in ENVIRONMENT_IDS.items():
-        if env_id not in gymnasium.registry:  # idempotent: re-imports and reloads change nothing
-            gymnasium.register(
-                id=env_id,
-                entry_point=f"brakegym.envs:{stem}Env",
-                vector_entry_point=f"brakegym.envs:{stem}VectorEnv",
-            )
+    register_environments()
 
 
 _register_environments()

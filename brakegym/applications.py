@@ -1,4 +1,4 @@
-"""Brake applications: build the plant and batch from configs, run stops, summarise them.
+"""Brake applications: run stops of configured rigs and trains, and summarise them.
 
 A *brake application* is one stop: the dynamometer braking a load case from its initial speed, or
 the train braking from v_0 with a brake mode, load and actuation. Functions here run a whole batch
@@ -14,8 +14,18 @@ from typing import Callable, Sequence
 import numpy as np
 
 from . import config as cfg
-from .physics import BrakeCylinder, Caliper, DiscThermalModel, FrictionDraw, FrictionLaw, RunningResistance
+from .physics import BrakeCylinder, FrictionDraw
+from .plants import brake_cylinder, dynamometer_plant, nominal_draw, train_plant
 from .simulator import (
+    BatchConditions,
+    CommandedPressure,
+    ExtraForce,
+    FrictionModifier,
+    Plant,
+    Simulator,
+    StopMetrics,
+)
+from .simulator.state import (
     BRAKE_WORK,
     COOLING_HEAT,
     EXTRA_WORK,
@@ -26,62 +36,13 @@ from .simulator import (
     SPEED,
     T_DISC,
     T_FRIC,
-    BatchConditions,
-    CommandedPressure,
-    ExtraForce,
-    FrictionModifier,
-    Plant,
-    Simulator,
-    StopMetrics,
 )
+from .units import ZERO_CELSIUS_K, kmh_to_mps
 
 # RK4 at 0.2 s reproduces the golden values within 0.04 % and 0.01 K (tests/test_golden.py), far
 # inside the spec's 0.5 %; 0.1 s halves that error at twice the cost.
 DEFAULT_STEP_S = 0.2
 MAX_STOP_TIME_S = 900.0
-KELVIN = 273.15
-
-
-def dynamometer_plant(rig: cfg.Dynamometer) -> Plant:
-    """The rig: one disc unit, commanded in clamp force (N), no running resistance."""
-    material = cfg.load("materials", rig.material)
-    return Plant(
-        name=rig.name,
-        n_axles=1,
-        discs_per_axle=1,
-        wheel_radius_m=rig.wheel_radius_m,
-        friction_radius_m=rig.friction_radius_m,
-        friction=FrictionLaw.from_config(material),
-        thermal=DiscThermalModel.from_config(cfg.load("discs", rig.disc)),
-        caliper=Caliper.identity(),
-        running_resistance=RunningResistance.none(),
-        max_command=max(case.clamp_force_kN for case in rig.load_cases) * 1e3,
-    )
-
-
-def train_plant(vehicle: cfg.Vehicle) -> Plant:
-    material = cfg.load("materials", vehicle.material)
-    return Plant(
-        name=vehicle.name,
-        n_axles=vehicle.n_axles,
-        discs_per_axle=vehicle.discs_per_axle,
-        wheel_radius_m=vehicle.wheel_radius_m,
-        friction_radius_m=vehicle.friction_radius_m,
-        friction=FrictionLaw.from_config(material),
-        thermal=DiscThermalModel.from_config(cfg.load("discs", vehicle.disc)),
-        caliper=Caliper.from_config(vehicle.caliper),
-        running_resistance=RunningResistance.from_config(vehicle.running_resistance),
-        max_command=vehicle.max_cylinder_pressure_bar,
-    )
-
-
-def nominal_draw(material: cfg.FrictionMaterial, n_applications: int, disc_shape: tuple[int, int]) -> FrictionDraw:
-    """The DS case: every disc at the nominal mu_0 and a."""
-    shape = (n_applications, *disc_shape)
-    return FrictionDraw(
-        initial_mu=np.full(shape, material.initial_mu),
-        power_coefficient_per_s=np.full(shape, material.power_coefficient_per_s),
-    )
 
 
 @dataclass
@@ -115,8 +76,8 @@ class _TrajectoryRecorder:
         self.rows["pressure_bar"].append(pressure)
         self.rows["clamp_force_N"].append(sim.to_external(clamp))
         self.rows["mu"].append(sim.to_external(sim.disc[MU]))
-        self.rows["friction_temperature_C"].append(sim.to_external(sim.disc[T_FRIC]) - KELVIN)
-        self.rows["disc_temperature_C"].append(sim.to_external(sim.disc[T_DISC]) - KELVIN)
+        self.rows["friction_temperature_C"].append(sim.to_external(sim.disc[T_FRIC]) - ZERO_CELSIUS_K)
+        self.rows["disc_temperature_C"].append(sim.to_external(sim.disc[T_DISC]) - ZERO_CELSIUS_K)
 
     def after_step(self, sim: Simulator) -> None:
         if sim.step_index % self.every == 0:
@@ -222,8 +183,8 @@ def run_stops(
         onset_distance_m=metrics.distance_after_onset_m(sim),
         mu_s=metrics.mean_mu_over_distance(sim),
         mu_s_eff=metrics.effective_mu_over_distance(sim),
-        peak_friction_temperature_C=sim.to_external(metrics.peak_friction_temperature_K) - KELVIN,
-        peak_disc_temperature_C=sim.to_external(metrics.peak_disc_temperature_K) - KELVIN,
+        peak_friction_temperature_C=sim.to_external(metrics.peak_friction_temperature_K) - ZERO_CELSIUS_K,
+        peak_disc_temperature_C=sim.to_external(metrics.peak_disc_temperature_K) - ZERO_CELSIUS_K,
         initial_kinetic_energy_J=initial_energy,
         brake_work_J=sim.train[BRAKE_WORK].copy(),
         resistance_work_J=sim.train[RESISTANCE_WORK].copy(),
@@ -319,16 +280,16 @@ def dyno_stops(
     material = cfg.load("materials", rig.material)
     n = len(load_cases)
     draw = draw or nominal_draw(material, n, plant.disc_shape)
-    initial_K = rig.initial_disc_temperature_C + KELVIN
+    initial_K = rig.initial_disc_temperature_C + ZERO_CELSIUS_K
     conditions = BatchConditions(
         mass_kg=np.array([case.mass_kg for case in load_cases], dtype=float),
-        initial_speed_mps=np.array([cfg.kmh_to_mps(case.initial_speed_kmh) for case in load_cases]),
+        initial_speed_mps=np.array([kmh_to_mps(case.initial_speed_kmh) for case in load_cases]),
         initial_mu=draw.initial_mu,
         power_coefficient_per_s=draw.power_coefficient_per_s,
         running_resistance_A_N=np.zeros(n),
         initial_friction_temperature_K=np.full((n, 1, 1), initial_K),
         initial_disc_temperature_K=np.full((n, 1, 1), initial_K),
-        ambient_temperature_K=np.full(n, rig.ambient_temperature_C + KELVIN),
+        ambient_temperature_K=np.full(n, rig.ambient_temperature_C + ZERO_CELSIUS_K),
     )
     clamp_force = np.array([[case.clamp_force_kN * 1e3] for case in load_cases])
     ramp = BrakeCylinder(dead_time_s=0.0, time_constant_s=rig.clamp_force_time_constant_s)
@@ -384,20 +345,20 @@ def train_stops(
     cylinders_by_name = {}
     for app in applications:
         if app.actuation not in cylinders_by_name:
-            cylinders_by_name[app.actuation] = BrakeCylinder.from_config(cfg.load("pneumatics", app.actuation))
+            cylinders_by_name[app.actuation] = brake_cylinder(cfg.load("pneumatics", app.actuation))
     pressures = np.array([vehicle.brake_pressure_bar(app.brake_mode, app.load) for app in applications])
     command = np.repeat(pressures[:, None], plant.n_axles, axis=1)
-    initial_K = vehicle.initial_disc_temperature_C + KELVIN
+    initial_K = vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K
     disc_shape = (n, *plant.disc_shape)
     conditions = BatchConditions(
         mass_kg=np.array([vehicle.mass_kg(app.load) for app in applications]),
-        initial_speed_mps=np.array([cfg.kmh_to_mps(app.initial_speed_kmh) for app in applications]),
+        initial_speed_mps=np.array([kmh_to_mps(app.initial_speed_kmh) for app in applications]),
         initial_mu=draw.initial_mu,
         power_coefficient_per_s=draw.power_coefficient_per_s,
         running_resistance_A_N=np.asarray(running_resistance_A_N, dtype=float),
         initial_friction_temperature_K=np.full(disc_shape, initial_K),
         initial_disc_temperature_K=np.full(disc_shape, initial_K),
-        ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + KELVIN),
+        ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + ZERO_CELSIUS_K),
     )
     return run_commanded_stops(
         plant,

@@ -16,14 +16,9 @@ from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from .envs import ENVIRONMENTS, BrakeVectorEnv, full_env_id
+from .envs import BrakeVectorEnv, task_class
+from .units import mps_to_kmh
 
-# The per-episode quantity judged in each task, and its unit.
-TASK_METRIC = {
-    "station_stop": ("stop_error_m", "m"),
-    "decel_tracking": ("mean_abs_tracking_error_mps2", "m/s2"),
-    "emergency_stop": ("braking_distance_m", "m"),
-}
 TRACE_CHANNELS = ("time_s", "speed_mps", "position_m", "deceleration_mps2", "mean_command_bar", "hottest_disc_C")
 
 
@@ -43,7 +38,7 @@ class StressResult:
     initial_speed_kmh: np.ndarray
     load: np.ndarray  # load names
     success: np.ndarray
-    metric: np.ndarray  # TASK_METRIC of the task (signed stop error for StationStop)
+    metric: np.ndarray  # the task's metric (signed stop error for StationStop)
     metric_name: str
     peak_jerk_mps3: np.ndarray
     peak_disc_temperature_C: np.ndarray
@@ -55,8 +50,7 @@ def make_vector_env(
     env_id: str, n_trains: int, setup: str, config: dict[str, Any] | None = None, autoreset: bool = False
 ) -> BrakeVectorEnv:
     """The batched environment ``env_id`` with ``setup`` as its friction scatter."""
-    vector_class = ENVIRONMENTS[full_env_id(env_id)][1]
-    return vector_class(num_envs=n_trains, config={**(config or {}), "setup": setup}, autoreset=autoreset)
+    return BrakeVectorEnv(env_id, num_envs=n_trains, config={**(config or {}), "setup": setup}, autoreset=autoreset)
 
 
 def run_stress(
@@ -83,13 +77,13 @@ def run_stress(
     for batch, start in enumerate(range(0, episodes, batch_size)):
         n = min(batch_size, episodes - start)
         env = make_vector_env(env_id, n, setup, config)
-        metric_name = TASK_METRIC[env.config.name][0]
+        metric_name = task_class(env.config.name).metric[0]
         controller = make_controller(env)
         observation, info = env.reset(seed=seed + batch)
         controller.reset(info)
         vehicle_loads = env.core.fleet.vehicle_loads
         loads = np.array([vehicle_loads[i] for i in env.core.fleet.episodes.load_index])
-        initial_speed = info["initial_speed_mps"] * 3.6
+        initial_speed = mps_to_kmh(info["initial_speed_mps"])
         # What each train's episode ended with, kept from the step it ended.
         ended_with = (metric_name, "peak_jerk_mps3", "peak_friction_temperature_C")
         final = {key: np.zeros_like(info[key]) for key in ended_with}
@@ -211,7 +205,7 @@ def report(result: StressResult, edges_kmh: Sequence[float]) -> dict[str, Any]:
 def table(reports: Sequence[dict[str, Any]]) -> str:
     """A Markdown table: one row per agent and speed band (and overall)."""
     metric = reports[0]["metric"]
-    unit = next(u for name, u in TASK_METRIC.values() if name == metric)
+    unit = task_class(reports[0]["env"]).metric[1]
     header = (
         f"| agent | speed band (km/h) | episodes | success | {metric} mean | std | p95 abs | p99 abs | worst abs "
         f"| peak jerk p95 / max (m/s3) | peak disc T max (C) |"

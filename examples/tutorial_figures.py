@@ -26,9 +26,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from brakegym import config as cfg  # noqa: E402
-from brakegym.applications import KELVIN, TrainApplication, nominal_draw, train_plant, train_stops  # noqa: E402
-from brakegym.campaigns import sample_statistics, train_monte_carlo  # noqa: E402
+from brakegym.applications import TrainApplication, train_stops  # noqa: E402
+from brakegym.campaigns import train_monte_carlo  # noqa: E402
 from brakegym.physics import FrictionDraw, FrictionLaw  # noqa: E402
+from brakegym.plants import friction_law, nominal_draw, train_plant  # noqa: E402
+from brakegym.statistics import sample_statistics  # noqa: E402
+from brakegym.units import ZERO_CELSIUS_K  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUT_DIR = REPO_ROOT / "docs" / "tutorial"
@@ -99,7 +102,7 @@ def fig1_speed_dependence(out_dir: Path = DEFAULT_OUT_DIR) -> dict[str, object]:
     the terms of Eq. 4 along both stops, and mu_s with the friction-power term switched off."""
     vehicle = cfg.load("vehicles", VEHICLE)
     material = cfg.load("materials", vehicle.material)
-    law = FrictionLaw.from_config(material)
+    law = friction_law(material)
     plant = train_plant(vehicle)
     initial_speeds_kmh = (100.0, 160.0)
     applications = [_emergency_stop(v0) for v0 in initial_speeds_kmh]
@@ -120,7 +123,7 @@ def fig1_speed_dependence(out_dir: Path = DEFAULT_OUT_DIR) -> dict[str, object]:
         mu,
         trajectory.clamp_force_N[:, :, 0],
         trajectory.speed_mps * plant.radius_ratio,
-        trajectory.friction_temperature_C[:, :, 0] + KELVIN,
+        trajectory.friction_temperature_C[:, :, 0] + ZERO_CELSIUS_K,
     )
     braking = (trajectory.clamp_force_N[:, :, 0] > 0) & (trajectory.speed_mps > 0)
 
@@ -262,10 +265,10 @@ def fig2_stop_and_cooling(out_dir: Path = DEFAULT_OUT_DIR, simulated_time_s: flo
     sliding_mps = trajectory.speed_mps[:, 0] * plant.radius_ratio
     flows = thermal.heat_flows(
         mu * trajectory.clamp_force_N[:, 0, 0] * sliding_mps,
-        friction_C + KELVIN,
-        disc_C + KELVIN,
+        friction_C + ZERO_CELSIUS_K,
+        disc_C + ZERO_CELSIUS_K,
         sliding_mps,
-        vehicle.ambient_temperature_C + KELVIN,
+        vehicle.ambient_temperature_C + ZERO_CELSIUS_K,
     )
 
     ambient_C = vehicle.ambient_temperature_C
@@ -281,7 +284,7 @@ def fig2_stop_and_cooling(out_dir: Path = DEFAULT_OUT_DIR, simulated_time_s: flo
     heat_capacity_J_per_K = thermal.friction_layer_heat_capacity_J_per_K + thermal.disc_body_heat_capacity_J_per_K
     # Fast equalisation: the friction layer empties into the body through G(T_m), Eq. 8.
     at_stop = int(np.searchsorted(time_s, stop_s))
-    mean_at_stop_K = 0.5 * (friction_C[at_stop] + disc_C[at_stop]) + KELVIN
+    mean_at_stop_K = 0.5 * (friction_C[at_stop] + disc_C[at_stop]) + ZERO_CELSIUS_K
     equalisation_time_constant_s = thermal.friction_layer_heat_capacity_J_per_K / float(
         thermal.conductance_W_per_K_at(np.array(mean_at_stop_K))
     )
@@ -481,7 +484,7 @@ def _import_pid_controller():
     # package: make it importable however this script is started.
     if str(REPO_ROOT) not in sys.path:
         sys.path.insert(0, str(REPO_ROOT))
-    from agents.pid import PIDController
+    from brakegym.agents.pid import PIDController
 
     return PIDController
 
@@ -529,7 +532,7 @@ def fig4_controller(
     """StationStop under MCS-75/25: open-loop constant pressure against the PID baseline on the
     same trains, the same with friction scatter alone, and the PID's pressure command for a low-
     and a high-friction train."""
-    from brakegym.envs import StationStopVectorEnv
+    from brakegym.envs import BrakeVectorEnv
 
     PIDController = _import_pid_controller()
     # Load and disc temperature fixed, so that the spread left is that of the MCS set-up's draws:
@@ -553,7 +556,7 @@ def fig4_controller(
     # The best constant pressure for the nominal train: a grid of pressures on DS trains, then
     # the pressure whose stop lands on the mark (the stop position falls as the pressure rises).
     probe_pressures_bar = np.linspace(1.0, 4.0, 31)
-    probe_env = StationStopVectorEnv(len(probe_pressures_bar), config=no_overrun_limit, autoreset=False)
+    probe_env = BrakeVectorEnv("station_stop", len(probe_pressures_bar), config=no_overrun_limit, autoreset=False)
     groups = probe_env.single_action_space.shape[0]
     probe_actions = np.repeat((2.0 * probe_pressures_bar / max_pressure_bar - 1.0)[:, None], groups, axis=1)
     probe = _run_station_stops(probe_env, {**scenario, "setup": "ds"}, seed, lambda _: probe_actions)
@@ -561,13 +564,13 @@ def fig4_controller(
     open_loop_actions = np.full((n_trains, groups), 2.0 * open_loop_pressure_bar / max_pressure_bar - 1.0)
 
     def open_loop_run(friction_only: bool) -> dict[str, np.ndarray]:
-        env = StationStopVectorEnv(n_trains, config={**no_overrun_limit, **scatter_setup}, autoreset=False)
+        env = BrakeVectorEnv("station_stop", n_trains, config={**no_overrun_limit, **scatter_setup}, autoreset=False)
         if friction_only:
             _without_resistance_scatter(env)
         return _run_station_stops(env, scenario, seed, lambda _: open_loop_actions)
 
     def pid_run(friction_only: bool) -> dict[str, np.ndarray]:
-        env = StationStopVectorEnv(n_trains, config=scatter_setup, autoreset=False)
+        env = BrakeVectorEnv("station_stop", n_trains, config=scatter_setup, autoreset=False)
         if friction_only:
             _without_resistance_scatter(env)
         controller = PIDController(env.config, env.observation_names)
@@ -576,7 +579,7 @@ def fig4_controller(
     # Same seed, same options: every run brakes the very same trains (the same draws).
     open_loop, pid = open_loop_run(friction_only=False), pid_run(friction_only=False)
     open_loop_friction_only, pid_friction_only = open_loop_run(friction_only=True), pid_run(friction_only=True)
-    nominal_env = StationStopVectorEnv(1, autoreset=False)
+    nominal_env = BrakeVectorEnv("station_stop", 1, autoreset=False)
     nominal_controller = PIDController(nominal_env.config, nominal_env.observation_names)
     nominal = _run_station_stops(
         nominal_env, {**scenario, "setup": "ds"}, seed, nominal_controller.act, on_reset=nominal_controller.reset

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from agents.pid import PIDController, load_pid_config
+from brakegym.agents.pid import PIDController, load_pid_config
 from brakegym.cli import main
 from brakegym.config import ConfigError
 from brakegym.stress import report, run_stress, table
@@ -90,7 +90,7 @@ def test_cli_agent_commands_refuse_bad_arguments(argv, message, capsys):
 def test_shipped_ppo_policy_stops_trains_on_the_mark():
     """The policy in agents/policies/ evaluates without training (README numbers come from
     `brakegym stress --agent pid --agent ppo --episodes 1000 --seed 100`)."""
-    from brakegym.cli_agents import controller_factory
+    from brakegym.cli.controllers import controller_factory
 
     name, factory = controller_factory("ppo", "brakegym/StationStop-v0")
     result = run_stress("StationStop-v0", factory, name, episodes=100, seed=100, batch_size=100)
@@ -103,18 +103,18 @@ def _tiny_hyperparameters(tmp_path, **extra):
 
     entry = {
         "n_envs": 4, "n_timesteps": 128, "policy": "MlpPolicy", "normalize": {"norm_obs": True, "norm_reward": True},
-        "n_steps": 32, "batch_size": 64, "n_epochs": 1, "eval_freq_steps": 64, "n_eval_episodes": 4,
-        "policy_kwargs": {"net_arch": [8, 8]}, **extra,
+        "n_steps": 32, "batch_size": 64, "n_epochs": 1, "policy_kwargs": {"net_arch": [8, 8]},
     }
+    own = {"eval_freq_steps": 64, "n_eval_episodes": 4, **extra}  # brakegym's keys, apart from rl_zoo3's
     path = tmp_path / "hyper.yaml"
-    path.write_text(yaml.safe_dump({"StationStop-v0": entry}))
+    path.write_text(yaml.safe_dump({"brakegym/StationStop-v0": entry, "brakegym": {"brakegym/StationStop-v0": own}}))
     return path
 
 
 def test_residual_agent_round_trip_and_zero_correction_is_the_pid(tmp_path):
     """A residual agent folder records its set-up (PID gains, env overrides) and, with the policy's
     correction forced to zero, commands exactly what the PID commands."""
-    from agents.rl import PolicyController, train
+    from brakegym.agents.rl import PolicyController, train
 
     hyper = _tiny_hyperparameters(
         tmp_path,
@@ -138,7 +138,7 @@ def test_residual_agent_round_trip_and_zero_correction_is_the_pid(tmp_path):
 
 
 def test_residual_needs_its_set_up(tmp_path):
-    from agents.rl import train
+    from brakegym.agents.rl import train
 
     with pytest.raises(ConfigError, match="residual"):
         train("ppo-residual", "StationStop-v0", tmp_path / "agent", hyperparameters=_tiny_hyperparameters(tmp_path), progress_bar=False)
@@ -147,7 +147,7 @@ def test_residual_needs_its_set_up(tmp_path):
 def test_shipped_residual_policy_stops_on_the_mark_with_lower_jerk_than_the_pid():
     """The shipped PPO residual on the PID (README: 100 % at seeds 100 and 200, 1000 episodes each,
     peak jerk p95 0.9 m/s3 against the PID's 1.22)."""
-    from brakegym.cli_agents import controller_factory
+    from brakegym.cli.controllers import controller_factory
 
     name, factory = controller_factory("ppo-residual", "brakegym/StationStop-v0")
     result = run_stress("StationStop-v0", factory, name, episodes=100, seed=100, batch_size=100)

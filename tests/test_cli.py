@@ -10,7 +10,7 @@ from brakegym.cli import main
 
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "brakegym.cli", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "brakegym", *args], capture_output=True, text=True, timeout=300)
 
 
 def test_dyno_case_json(tmp_path):
@@ -93,8 +93,8 @@ def test_bad_config_file_exit_2(tmp_path, monkeypatch):
     path = configs / "pneumatics" / "EP.yaml"
     path.write_text(path.read_text().replace("time_constant_s: 0.8", "time_constant_s: -0.8"))
     result = subprocess.run(
-        [sys.executable, "-m", "brakegym.cli", "simulate", "--v0", "100"],
-        capture_output=True, text=True, env={**__import__("os").environ, "BRAKEGYM_CONFIG_DIR": str(configs)},
+        [sys.executable, "-m", "brakegym", "simulate", "--v0", "100"],
+        capture_output=True, text=True, env={**__import__("os").environ, "BRAKEGYM_CONFIG_PATH": str(configs)},
     )
     assert result.returncode == 2
     assert str(path) in result.stderr and "time_constant_s" in result.stderr and "-0.8" in result.stderr

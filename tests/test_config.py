@@ -23,7 +23,7 @@ def test_every_shipped_config_loads(kind):
 def config_copy(tmp_path, monkeypatch):
     target = tmp_path / "configs"
     shutil.copytree(REPO_CONFIGS, target)
-    monkeypatch.setenv(cfg.CONFIG_DIR_ENV, str(target))
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(target))
     return target
 
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from brakegym.cli import main
-from brakegym.envs import StationStopEnv
-from brakegym.recordings.diagnosis import diagnose, write_effect_set
-from brakegym.recordings.effects import load_effects
+from brakegym.envs import BrakeEnv
+from brakegym.diagnosis import diagnose, write_effect_set
+from brakegym.effects import load_effects
 from brakegym.recordings.format import read_dataset
 from brakegym.recordings.synth import EffectRequest, synthesize
 
@@ -49,7 +49,7 @@ def test_names_a_gradient_and_recovers_its_size(tmp_path):
     assert [e.id for e in effects] == report["selected"]
     gradient_effect = next(e for e in effects if e.id == "gradient")
     assert gradient_effect["gradient_permil"] == pytest.approx(fitted)
-    env = StationStopEnv(config={"effects": str(tmp_path / "diagnosed.yaml")})
+    env = BrakeEnv("station_stop", config={"effects": str(tmp_path / "diagnosed.yaml")})
     env.reset(seed=0)
     env.step(np.zeros(env.action_space.shape, np.float32))
     assert [e.id for e in env.unwrapped.core.fleet.effects] == report["selected"]

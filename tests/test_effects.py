@@ -10,9 +10,11 @@ import pytest
 import yaml
 
 from brakegym import config as cfg
-from brakegym.recordings.effects import EFFECTS, STANDARD_GRAVITY_MPS2, apply_effects, load_effects, make_effect
+from brakegym.effects import EFFECTS, apply_effects, load_effects, make_effect
+from brakegym.units import STANDARD_GRAVITY_MPS2
 from brakegym.recordings.measurement import MeasurementModel
-from brakegym.recordings.replay import plant_for, simulate_grid
+from brakegym.plants import train_plant
+from brakegym.recordings.replay import simulate_grid
 from brakegym.simulator import BatchConditions, PrescribedPressure
 
 REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -25,7 +27,7 @@ pytestmark = pytest.mark.filterwarnings("ignore")
 
 
 def _conditions(n=1, speed_mps=SPEED_MPS, temperature_C=50.0):
-    plant = plant_for(VEHICLE)
+    plant = train_plant(VEHICLE)
     material = cfg.load("materials", VEHICLE.material)
     shape = (n, *plant.disc_shape)
     return BatchConditions(
@@ -41,7 +43,7 @@ def _conditions(n=1, speed_mps=SPEED_MPS, temperature_C=50.0):
 
 
 def _simulator(effects, pressure_bar=3.3, n=1, **conditions):
-    model = apply_effects(plant_for(VEHICLE), _conditions(n, **conditions), effects)
+    model = apply_effects(train_plant(VEHICLE), _conditions(n, **conditions), effects)
     trace = np.full((2, n, VEHICLE.n_axles), pressure_bar)
     return model, model.simulator(PrescribedPressure(np.array([0.0, 1.0]), trace, STEP_S), STEP_S)
 
@@ -58,7 +60,7 @@ def _initial_brake_force_N(effects, **kwargs):
 
 
 def _run(effects, pressure_bar=3.3, speed_mps=20.0, n=1, decel_source="accelerometer"):
-    model = apply_effects(plant_for(VEHICLE), _conditions(n, speed_mps=speed_mps), effects)
+    model = apply_effects(train_plant(VEHICLE), _conditions(n, speed_mps=speed_mps), effects)
     trace = np.full((2, n, VEHICLE.n_axles), pressure_bar)
     grid = simulate_grid(model, PrescribedPressure(np.array([0.0, 1.0]), trace, STEP_S), STEP_S, lambda sim: not sim.moving.any())
     return model, grid, [MeasurementModel(grid, b, model, decel_source, 1) for b in range(n)]
@@ -149,7 +151,7 @@ def test_brake_unit_failure_silences_the_last_units():
 
 
 def test_running_resistance_replaces_the_nominal_coefficients():
-    effect = make_effect("running_resistance", A_N=6000.0, B_Nspm=80.0, C_Ns2pm2=9.0)
+    effect = make_effect("running_resistance", A_N=6000.0, B_N_per_mps=80.0, C_N_per_mps2=9.0)
     _, sim = _simulator([effect], pressure_bar=0.0)
     expected = (6000.0 + 80.0 * SPEED_MPS + 9.0 * SPEED_MPS**2) / MASS_KG
     assert sim.deceleration_mps2()[0] == pytest.approx(expected, rel=1e-12)
@@ -211,7 +213,7 @@ def test_every_effect_has_its_public_parameters_and_a_no_effect_value():
         "thermal_fade": ["onset_C", "loss_per_100K"],
         "rotating_mass": ["mass_factor"],
         "brake_unit_failure": ["failed_units"],
-        "running_resistance": ["A_N", "B_Nspm", "C_Ns2pm2"],
+        "running_resistance": ["A_N", "B_N_per_mps", "C_N_per_mps2"],
         "speed_sensor_scale": ["scale"],
         "temperature_sensor_lag": ["tau_s"],
     }
@@ -245,7 +247,7 @@ def test_effect_set_from_yaml_runs_in_the_simulator():
 def test_bad_effect_config_names_file_field_and_value(tmp_path, monkeypatch, effects, message):
     target = tmp_path / "configs"
     shutil.copytree(REPO_CONFIGS, target)
-    monkeypatch.setenv(cfg.CONFIG_DIR_ENV, str(target))
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(target))
     path = target / "effects" / "bad.yaml"
     path.write_text(yaml.safe_dump({"name": "bad", "effects": effects}))
     with pytest.raises(cfg.ConfigError, match=message) as info:

@@ -12,7 +12,7 @@ import pytest
 
 import brakegym  # noqa: F401  (registers the environments)
 from brakegym.config import ConfigError
-from brakegym.envs import DecelTrackingVectorEnv, StationStopEnv, StationStopVectorEnv
+from brakegym.envs import BrakeEnv, BrakeVectorEnv
 
 ENV_IDS = ["brakegym/StationStop-v0", "brakegym/DecelTracking-v0", "brakegym/EmergencyStop-v0"]
 QUIET = {"sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}}
@@ -78,7 +78,7 @@ def test_same_seed_same_episode_bit_for_bit(env_id):
 
 
 def test_invalid_actions_raise_clear_errors():
-    env = StationStopEnv()
+    env = BrakeEnv("station_stop")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([0.1, np.nan, 0.1, 0.1], dtype=np.float32))
@@ -92,20 +92,20 @@ def test_out_of_range_actions_are_clipped_to_the_space():
     """Documented behaviour: values beyond [-1, 1] act like the nearest bound."""
     results = []
     for action in (1.0, 7.5):
-        env = StationStopEnv()
+        env = BrakeEnv("station_stop")
         env.reset(seed=3)
         for _ in range(20):
             observation, *_ = env.step(np.full(4, action, np.float32))
         results.append(observation)
     np.testing.assert_array_equal(results[0], results[1])
-    env = StationStopEnv()
+    env = BrakeEnv("station_stop")
     env.reset(seed=3)
     _, _, _, _, info = env.step(np.full(4, -3.0, np.float32))
     assert np.all(info["command_bar"] == 0.0)
 
 
 def test_full_action_commands_the_vehicle_maximum_pressure():
-    env = StationStopEnv(config={"control_groups": "axle"})
+    env = BrakeEnv("station_stop", config={"control_groups": "axle"})
     env.reset(seed=0)
     _, _, _, _, info = env.step(np.ones(8, np.float32))
     np.testing.assert_allclose(info["command_bar"], 4.5)
@@ -115,10 +115,10 @@ def test_full_action_commands_the_vehicle_maximum_pressure():
     np.testing.assert_allclose(info["cylinder_pressure_bar"], 4.5, rtol=2e-3)
 
 
-@pytest.mark.parametrize("vector_class", [StationStopVectorEnv, DecelTrackingVectorEnv])
-def test_random_actions_never_produce_nan(vector_class):
+@pytest.mark.parametrize("task", ["station_stop", "decel_tracking"])
+def test_random_actions_never_produce_nan(task):
     """10^5 random-action train-steps, with autoresets, stay finite and inside the space."""
-    env = vector_class(num_envs=250)
+    env = BrakeVectorEnv(task, num_envs=250)
     observation, _ = env.reset(seed=11)
     rng = np.random.default_rng(0)
     for _ in range(400):
@@ -132,9 +132,9 @@ def test_random_actions_never_produce_nan(vector_class):
 def test_vector_env_matches_single_env_physics():
     """Without noise or scatter, a batch of trains and one train see the same physics."""
     options = {"initial_speed_kmh": 80.0, "load": "normal", "setup": "ds", "initial_disc_temperature_C": 60.0, "distance_to_mark_m": 400.0}
-    single = StationStopEnv(config=QUIET)
+    single = BrakeEnv("station_stop", config=QUIET)
     single.reset(seed=0, options=options)
-    vector = StationStopVectorEnv(num_envs=5, config=QUIET)
+    vector = BrakeVectorEnv("station_stop", num_envs=5, config=QUIET)
     vector.reset(seed=1, options=options)
     for _ in range(100):
         single_observation, *_ = single.step(np.full(4, 0.1, np.float32))
@@ -145,13 +145,13 @@ def test_vector_env_matches_single_env_physics():
 
 def test_make_vec_uses_the_native_vector_env():
     env = gym.make_vec("brakegym/StationStop-v0", num_envs=4)
-    assert isinstance(env.unwrapped, StationStopVectorEnv)
+    assert isinstance(env.unwrapped, BrakeVectorEnv) and env.unwrapped.config.name == "station_stop"
     observation, _ = env.reset(seed=0)
     assert observation.shape == (4, env.single_observation_space.shape[0])
 
 
 def test_autoreset_same_step_reports_final_observation():
-    env = StationStopVectorEnv(num_envs=3, config=QUIET)
+    env = BrakeVectorEnv("station_stop", num_envs=3, config=QUIET)
     env.reset(seed=0, options={"initial_speed_kmh": 20.0, "distance_to_mark_m": 50.0, "setup": "ds", "load": "max", "initial_disc_temperature_C": 50.0})
     for _ in range(1000):
         observation, _, terminated, truncated, info = env.step(np.ones((3, 4), np.float32))
@@ -165,7 +165,7 @@ def test_autoreset_same_step_reports_final_observation():
 
 
 def test_station_stop_success_and_reward_terms():
-    env = StationStopEnv(config=QUIET)
+    env = BrakeEnv("station_stop", config=QUIET)
     env.reset(seed=0, options={"initial_speed_kmh": 30.0, "distance_to_mark_m": 60.0})
     total = 0.0
     for _ in range(600):
@@ -181,7 +181,7 @@ def test_station_stop_success_and_reward_terms():
 
 
 def test_station_stop_overrun_ends_the_episode():
-    env = StationStopEnv(config=QUIET)
+    env = BrakeEnv("station_stop", config=QUIET)
     env.reset(seed=0, options={"initial_speed_kmh": 60.0, "distance_to_mark_m": 50.0})
     for _ in range(600):
         _, _, terminated, truncated, info = env.step(np.full(4, -1.0, np.float32))
@@ -217,7 +217,7 @@ def test_emergency_stop_overheat_terminates():
 
 
 def test_thermal_state_carries_over_between_episodes():
-    env = StationStopEnv(config={**QUIET, "carry_over_thermal_state": True})
+    env = BrakeEnv("station_stop", config={**QUIET, "carry_over_thermal_state": True})
     env.reset(seed=0, options={"initial_speed_kmh": 100.0, "distance_to_mark_m": 600.0})
     info = {}
     for _ in range(2000):
@@ -231,35 +231,35 @@ def test_thermal_state_carries_over_between_episodes():
 
 
 def test_only_the_instrumented_disc_can_be_observed():
-    env = StationStopEnv(config={"observed_temperatures": "instrumented", "instrumented_disc": 5})
+    env = BrakeEnv("station_stop", config={"observed_temperatures": "instrumented", "instrumented_disc": 5})
     assert [n for n in env.observation_names if n.startswith("temperature")] == ["temperature_C_5"]
 
 
 def test_bad_config_and_options_are_refused_with_names():
     with pytest.raises(ConfigError, match="control_groups"):
-        StationStopEnv(config={"control_groups": "wagon"})
+        BrakeEnv("station_stop", config={"control_groups": "wagon"})
     with pytest.raises(ConfigError, match="simulation_frequency_hz"):
-        StationStopEnv(config={"simulation_frequency_hz": 15})
+        BrakeEnv("station_stop", config={"simulation_frequency_hz": 15})
     with pytest.raises(ConfigError, match="no_such_field"):
-        StationStopEnv(config={"no_such_field": 1})
+        BrakeEnv("station_stop", config={"no_such_field": 1})
     with pytest.raises(ConfigError, match="loads"):
-        StationStopEnv(config={"loads": ["crush"]})
-    env = StationStopEnv()
+        BrakeEnv("station_stop", config={"loads": ["crush"]})
+    env = BrakeEnv("station_stop")
     with pytest.raises(ValueError, match="unknown reset option"):
         env.reset(seed=0, options={"initial_speed": 50})
     with pytest.raises(ValueError, match="load"):
         env.reset(seed=0, options={"load": "crush"})
     with pytest.raises(RuntimeError, match="reset"):
-        StationStopEnv().step(np.zeros(4, np.float32))
+        BrakeEnv("station_stop").step(np.zeros(4, np.float32))
 
 
 def test_render_modes():
-    env = StationStopEnv(render_mode="rgb_array")
+    env = BrakeEnv("station_stop", render_mode="rgb_array")
     env.reset(seed=0)
     env.step(np.zeros(4, np.float32))
     frame = env.render()
     assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
-    env = StationStopEnv(render_mode="ansi")
+    env = BrakeEnv("station_stop", render_mode="ansi")
     env.reset(seed=0)
     env.step(np.zeros(4, np.float32))
     assert "km/h" in env.render() and "to go" in env.render()
@@ -272,7 +272,7 @@ def test_sb3_adapter_trains_ppo_on_the_batched_env():
     from brakegym.envs.sb3 import SB3VecEnv
 
     torch.set_num_threads(1)
-    venv = SB3VecEnv(StationStopVectorEnv(num_envs=8, config={"max_episode_time_s": 3.0}))
+    venv = SB3VecEnv(BrakeVectorEnv("station_stop", num_envs=8, config={"max_episode_time_s": 3.0}))
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=1024)
     venv.reset()
@@ -289,7 +289,7 @@ def test_sb3_adapter_trains_ppo_on_the_batched_env():
 def test_reset_trains_equals_a_fresh_simulator():
     """Restarting some trains of a running batch gives them exactly the run of a fresh batch."""
     from brakegym import config as cfg
-    from brakegym.applications import train_plant
+    from brakegym.plants import brake_cylinder, train_plant
     from brakegym.physics import BrakeCylinder
     from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
 
@@ -306,7 +306,7 @@ def test_reset_trains_equals_a_fresh_simulator():
             initial_disc_temperature_K=rng.uniform(300, 400, shape), ambient_temperature_K=np.full(n, 293.15),
         )  # fmt: skip
 
-    cylinder = BrakeCylinder.from_config(cfg.load("pneumatics", "EP"))
+    cylinder = brake_cylinder(cfg.load("pneumatics", "EP"))
     running = Simulator(plant, conditions(4), CommandedPressure([cylinder] * 4, 8, 0.05), step_s=0.05)
     running.pressure.set_command(np.full((4, 8), 3.0))
     for _ in range(30):
@@ -330,8 +330,8 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
     import dataclasses
 
     from brakegym import config as cfg
-    from brakegym.applications import train_plant
-    from brakegym.physics import BrakeCylinder, RunningResistance
+    from brakegym.plants import brake_cylinder, train_plant
+    from brakegym.physics import BrakeCylinder, RunningResistanceLaw
     from brakegym.simulator import BatchConditions, CommandedPressure, NumpyReferenceSimulator, Simulator
 
     base = train_plant(cfg.load("vehicles", "emu_8axle"))
@@ -353,10 +353,10 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
             sim.step()
         return sim
 
-    batch_plant = dataclasses.replace(base, running_resistance=RunningResistance(A_N=2500.0, B_N_per_mps=B, C_N_per_mps2=C))
+    batch_plant = dataclasses.replace(base, running_resistance=RunningResistanceLaw(A_N=2500.0, B_N_per_mps=B, C_N_per_mps2=C))
     batch = run(batch_plant, np.arange(n))
     for i in range(n):
-        alone_plant = dataclasses.replace(base, running_resistance=RunningResistance(2500.0, float(B[i]), float(C[i])))
+        alone_plant = dataclasses.replace(base, running_resistance=RunningResistanceLaw(2500.0, float(B[i]), float(C[i])))
         alone = run(alone_plant, [i])
         np.testing.assert_array_equal(batch.train[:, i], alone.train[:, 0])
         np.testing.assert_array_equal(batch.disc[..., i], alone.disc[..., 0])
@@ -364,7 +364,7 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
     np.testing.assert_allclose(batch.train, reference.train, rtol=1e-12)
     assert len(np.unique(batch.train[0])) == n, "different resistances give different speeds"
 
-    wrong = dataclasses.replace(base, running_resistance=RunningResistance(2500.0, np.array([30.0, 60.0]), 5.0))
+    wrong = dataclasses.replace(base, running_resistance=RunningResistanceLaw(2500.0, np.array([30.0, 60.0]), 5.0))
     with pytest.raises(ValueError, match="running resistance B_N_per_mps: one value or one per train"):
         run(wrong, np.arange(n))
 
@@ -388,7 +388,7 @@ def _effect_set(tmp_path, name, effects):
 
 def _coasting_deceleration(effects, steps=5, seed=3):
     """Deceleration of 4 trains (loads drawn) after ``steps`` control steps with the brakes released."""
-    env = StationStopVectorEnv(num_envs=4, config={**QUIET, "effects": effects}, autoreset=False)
+    env = BrakeVectorEnv("station_stop", num_envs=4, config={**QUIET, "effects": effects}, autoreset=False)
     env.reset(seed=seed)
     for _ in range(steps):
         env.step(-np.ones(env.action_space.shape, np.float32))
@@ -415,7 +415,7 @@ def test_sensor_effects_act_on_the_observation_only(tmp_path):
         tmp_path, "sensors", {"speed_sensor_scale": {"scale": 1.03}, "temperature_sensor_lag": {"tau_s": 10.0}}
     )
     config = {**QUIET, "effects": effects, "observed_temperatures": "instrumented"}
-    env, nominal = StationStopEnv(config=config), StationStopEnv(config=QUIET)
+    env, nominal = BrakeEnv("station_stop", config=config), BrakeEnv("station_stop", config=QUIET)
     names = env.unwrapped.observation_names
     speed, decel, to_go, temperature = (names.index(n) for n in ("speed_mps", "decel_mps2", "distance_to_go_m", "temperature_C_1"))
     for e in (env, nominal):
@@ -446,4 +446,4 @@ def test_effect_sets_needing_the_staged_path_pass_the_env_checker():
 
 def test_an_unknown_effect_set_is_refused_naming_the_field():
     with pytest.raises(ConfigError, match="field 'effects' = 'no_such_set'"):
-        StationStopEnv(config={"effects": "no_such_set"})
+        BrakeEnv("station_stop", config={"effects": "no_such_set"})

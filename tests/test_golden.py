@@ -1,4 +1,4 @@
-"""Conformance: the simulator reproduces every number in shared/golden within the spec's
+"""Conformance: the simulator reproduces every number in tests/golden within the spec's
 tolerances (0.5 % on distances, times and mu; 2 K on temperatures), at the default step."""
 
 import numpy as np
@@ -98,3 +98,17 @@ def test_step_convergence(rig):
     fine = abs(dyno_stops(rig, case, step_s=0.1).stop_distance_m[0] - reference)
     assert fine < coarse
     assert coarse / reference < 1e-3
+
+
+def test_golden_files_are_the_ones_their_provenance_names(golden_dir):
+    """The reference values are data the project owns: a change to a file must come with a new
+    provenance entry (tests/golden/PROVENANCE.md lists each file's SHA-256)."""
+    import hashlib
+    import re
+
+    listed = dict(
+        (name, digest)
+        for digest, name in re.findall(r"^([0-9a-f]{64})  (\S+)$", (golden_dir / "PROVENANCE.md").read_text(), re.M)
+    )
+    files = {path.name: hashlib.sha256(path.read_bytes()).hexdigest() for path in golden_dir.glob("*.csv")}
+    assert files == listed

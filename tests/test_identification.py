@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -30,7 +31,11 @@ from brakegym.identification import (
     write_dyno_curves,
 )
 from brakegym.identification.stochastic import dyno_spread_groups, field_spread_groups, identify_scatter
-from brakegym.physics import draw_friction, draw_running_resistance
+from brakegym.physics import draw_friction
+from brakegym.physics import draw_running_resistance
+from brakegym.plants import scatter_partition, stochastic_friction
+
+REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 
 # A campaign of one application per load case has no spread: its envelope's std warns.
 pytestmark = pytest.mark.filterwarnings("ignore:Degrees of freedom <= 0:RuntimeWarning")
@@ -63,7 +68,7 @@ def synthetic_dyno_curves(tmp_path, monkeypatch, truth, cases, seed, until_s=Non
     """Mean curves of a DS dyno campaign of ``cases`` (one application each) made with the
     ``truth`` parameters at 0.1 s, plus white measurement noise of the channel scales."""
     folder = tmp_path / "truth_configs"
-    shutil.copytree(cfg.config_dir(), folder)
+    shutil.copytree(REPO_CONFIGS, folder)
     material, disc = _perturbed_configs(truth)
     (folder / "materials" / "ehret2022.yaml").write_text(yaml.safe_dump(material))
     (folder / "discs" / "ehret2022_disc.yaml").write_text(yaml.safe_dump(disc))
@@ -73,7 +78,7 @@ def synthetic_dyno_curves(tmp_path, monkeypatch, truth, cases, seed, until_s=Non
     ]
     (folder / "rigs" / "dynamometer.yaml").write_text(yaml.safe_dump(rig))
     with monkeypatch.context() as patch:
-        patch.setenv(cfg.CONFIG_DIR_ENV, str(folder))
+        patch.setenv(cfg.CONFIG_PATH_ENV, str(folder))
         truth_rig = cfg.load("rigs", "dynamometer")
         result = campaigns.dyno_campaign(truth_rig, cfg.load("setups", "ds"), seed=0, step_s=0.1, workers=1)
     clean = dyno_curves_from_campaign(result, truth_rig)
@@ -154,7 +159,7 @@ def dyno_applications_table() -> pd.DataFrame:
     """The full dyno campaign's 1950 single-disc stops (MCS-100) with the true scatter."""
     material = MATERIAL.model_copy(update={"scatter": TRUE_SCATTER})
     cases = [case for case, _ in campaigns.dyno_applications(RIG)]
-    draw = draw_friction(np.random.default_rng(11), material, cfg.load("setups", "mcs-100"), len(cases), (1, 1))
+    draw = draw_friction(np.random.default_rng(11), stochastic_friction(material), scatter_partition(cfg.load("setups", "mcs-100")), len(cases), (1, 1))
     summary = dyno_stops(RIG, cases, draw)
     return pd.DataFrame({"load_case": [c.name for c in cases], "mu_s": summary.mu_s[:, 0]})
 
@@ -167,8 +172,9 @@ def train_applications_table() -> pd.DataFrame:
     setup = cfg.load("setups", "mcs-75-25")
     apps = [TrainApplication("empty", "emergency", "EP", v0) for v0 in (100.0, 160.0) for _ in range(60)]
     rng = np.random.default_rng(12)
-    draw = draw_friction(rng, material, setup, len(apps), (vehicle.n_axles, vehicle.discs_per_axle))
-    resistance = draw_running_resistance(rng, vehicle.running_resistance, setup, len(apps))
+    partition = scatter_partition(setup)
+    draw = draw_friction(rng, stochastic_friction(material), partition, len(apps), (vehicle.n_axles, vehicle.discs_per_axle))
+    resistance = draw_running_resistance(rng, vehicle.running_resistance.A_N, vehicle.running_resistance.A_sigma_N, partition, len(apps))
     summary = train_stops(vehicle, apps, draw, resistance)
     return pd.DataFrame(
         {"brake_mode": "emergency", "load": "empty", "pad_set": "1", "actuation": "EP",
@@ -261,7 +267,7 @@ def test_cli_rejects_a_split_outside_0_1(capsys):
 
 
 def test_bad_identification_config_names_file_and_field(tmp_path):
-    data = yaml.safe_load((cfg.config_dir() / "identification" / "default.yaml").read_text())
+    data = yaml.safe_load((REPO_CONFIGS / "identification" / "default.yaml").read_text())
     data["name"] = "broken"
     data["parameters"][0]["lower"] = 1.0  # above its upper bound
     path = tmp_path / "broken.yaml"

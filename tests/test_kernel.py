@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from brakegym import config as cfg
-from brakegym import kernel, kernel_math
-from brakegym.applications import TrainApplication, dynamometer_plant, train_plant, train_stops
+from brakegym.simulator import kernel, kernel_math
+from brakegym.applications import TrainApplication, train_stops
 from brakegym.campaigns import field_applications, train_monte_carlo
 from brakegym.physics import BrakeCylinder, FrictionDraw, draw_friction
+from brakegym.plants import dynamometer_plant, scatter_partition, stochastic_friction, train_plant
 from brakegym.physics.elementary import fractional_power
 from brakegym.simulator import (
     DISC_STATES,
@@ -189,15 +190,15 @@ def test_stage_rates_match_the_numpy_reference_on_random_states(plant, with_hook
     pressure_bar = rng.uniform(0.0, 4.5, (n, plant.n_axles))
     pressure_bar[:3] = 0.0
     clamp = reference.clamp_force_N(pressure_bar)
-    expected_disc, expected_train = reference._rates(0.0, reference.disc, reference.train, clamp)
+    expected_disc, expected_train = reference.rates(0.0, reference.disc, reference.train, clamp)
 
     compiled = Simulator(plant, conditions, pressure, 0.1, **hooks)
-    context = compiled._context(0.0, reference.disc, reference.train, np.ascontiguousarray(clamp))
-    scale, extra = compiled._hook_arrays(context)
+    context = compiled.context_at(0.0, reference.disc, reference.train, np.ascontiguousarray(clamp))
+    scale, extra = compiled.hooks_at(context)
     disc_rates, train_rates = np.empty_like(reference.disc), np.empty_like(reference.train)
     kernel.stage_rates(
-        compiled._parameters, reference.disc, reference.train, reference.moving, pressure_bar, scale, extra,
-        compiled.power_coefficient, compiled._constants, disc_rates, train_rates,
+        compiled.plant_parameters, reference.disc, reference.train, reference.moving, pressure_bar, scale, extra,
+        compiled.power_coefficient, compiled.train_constants, disc_rates, train_rates,
     )  # fmt: skip
     # 1e-12 relative to the size of each quantity over the batch (a rate that is a small
     # difference of large heat flows is compared at the scale of those flows).
@@ -236,7 +237,7 @@ def _mixed_applications():
 
 def _scatter_draw(vehicle, plant, n, seed):
     material = cfg.load("materials", vehicle.material)
-    return draw_friction(np.random.default_rng(seed), material, cfg.load("setups", "mcs-75-25"), n, plant.disc_shape)
+    return draw_friction(np.random.default_rng(seed), stochastic_friction(material), scatter_partition(cfg.load("setups", "mcs-75-25")), n, plant.disc_shape)
 
 
 SUMMARY_FIELDS = (

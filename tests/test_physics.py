@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from brakegym import config as cfg
-from brakegym.applications import KELVIN, TrainApplication, dynamometer_plant, train_plant, train_stops
-from brakegym.physics import BrakeCylinder, Caliper, DiscThermalModel, FrictionLaw
+from brakegym.applications import TrainApplication, train_stops
+from brakegym.physics import BrakeCylinder
+from brakegym.plants import caliper_law, dynamometer_plant, friction_law, thermal_model, train_plant
+from brakegym.units import ZERO_CELSIUS_K
 from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
 
 
@@ -19,12 +21,12 @@ def vehicle():
 
 @pytest.fixture(scope="module")
 def friction():
-    return FrictionLaw.from_config(cfg.load("materials", "ehret2022"))
+    return friction_law(cfg.load("materials", "ehret2022"))
 
 
 @pytest.fixture(scope="module")
 def thermal():
-    return DiscThermalModel.from_config(cfg.load("discs", "ehret2022_disc"))
+    return thermal_model(cfg.load("discs", "ehret2022_disc"))
 
 
 def test_friction_rate_matches_eq4_by_hand(friction):
@@ -46,7 +48,7 @@ def test_friction_state_held_when_released_or_standing(friction):
 
 
 def test_caliper_gives_table4_clamp_forces(vehicle):
-    caliper = Caliper.from_config(vehicle.caliper)
+    caliper = caliper_law(vehicle.caliper)
     forces = caliper.clamp_force_N(np.array([3.05, 3.30, 3.97, 4.05, 0.2]))
     np.testing.assert_allclose(forces, [33000, 36000, 44040, 45000, 0], atol=1.0)
 
@@ -196,4 +198,4 @@ def test_train_plant_geometry(vehicle):
     assert plant.n_discs == 16 and plant.disc_shape == (8, 2)
     assert vehicle.mass_kg("empty") == pytest.approx(16 * 7574)
     assert math.isclose(plant.radius_ratio, 0.28 / 0.46)
-    assert KELVIN == 273.15
+    assert ZERO_CELSIUS_K == 273.15

@@ -14,14 +14,13 @@ from brakegym.recordings import (
     Recording,
     RecordingError,
     RecordingMetadata,
-    make_effect,
     read_dataset,
     read_recording,
     write_recording,
 )
 from brakegym.recordings.measurement import first_order_lag
 import brakegym.recordings.replay as replay_module
-from brakegym.recordings.effects import FrictionLevel, Gradient
+from brakegym.effects import FrictionLevel, Gradient, make_effect
 from brakegym.recordings.replay import compare, kinematic_consistency, replay, replay_batch, simulate_grid
 from brakegym.recordings.synth import EffectRequest, synthesize
 

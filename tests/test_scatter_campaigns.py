@@ -6,15 +6,10 @@ from scipy import stats
 
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication
-from brakegym.campaigns import (
-    dyno_applications,
-    envelope,
-    field_applications,
-    field_campaign,
-    sample_statistics,
-    train_monte_carlo,
-)
+from brakegym.campaigns import dyno_applications, field_applications, field_campaign, train_monte_carlo
+from brakegym.statistics import envelope, sample_statistics
 from brakegym.physics import draw_friction, draw_running_resistance
+from brakegym.plants import scatter_partition, stochastic_friction
 
 N = 4000
 
@@ -25,7 +20,7 @@ def material():
 
 
 def _draw(material, setup_name, seed=7):
-    return draw_friction(np.random.default_rng(seed), material, cfg.load("setups", setup_name), N, (8, 2))
+    return draw_friction(np.random.default_rng(seed), stochastic_friction(material), scatter_partition(cfg.load("setups", setup_name)), N, (8, 2))
 
 
 def test_ds_is_nominal(material):
@@ -65,10 +60,11 @@ def test_draws_are_normal(material):
 def test_running_resistance_scatter():
     vehicle = cfg.load("vehicles", "emu_8axle")
     rng = np.random.default_rng(3)
-    scattered = draw_running_resistance(rng, vehicle.running_resistance, cfg.load("setups", "mcs-100"), N)
+    resistance = vehicle.running_resistance
+    scattered = draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N)
     assert scattered.mean() == pytest.approx(2500, abs=4 * 1600 / np.sqrt(N))
     assert scattered.std(ddof=1) == pytest.approx(1600, rel=0.04)
-    fixed = draw_running_resistance(rng, vehicle.running_resistance, cfg.load("setups", "ds"), 10)
+    fixed = draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "ds")), 10)
     assert np.all(fixed == 2500)
 
 

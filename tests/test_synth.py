@@ -9,7 +9,7 @@ import pytest
 
 from brakegym.cli import main
 from brakegym.recordings import read_dataset
-from brakegym.recordings.effects import EFFECTS
+from brakegym.effects import EFFECTS
 from brakegym.recordings.synth import SENSOR_NOISE, EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")

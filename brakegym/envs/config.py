@@ -1,9 +1,10 @@
 """Validated environment configs (HighwayEnv style: defaults from YAML, merged with the user's).
 
-Each environment has a default config in ``configs/environments/<name>.yaml``; the ``config``
-argument of ``gymnasium.make`` (a dict, or the path of a YAML file) is merged into it key by key
-(nested mappings are merged, everything else replaced) and the result validated. Errors name the
-file or argument, the field and the value, like every other brakegym config.
+Each environment has a default config in ``configs/environments/<name>.yaml`` (found on the config
+search path, :mod:`brakegym.config.library`); the ``config`` argument of ``gymnasium.make`` (a dict,
+or the path of a YAML file) is merged into it key by key (nested mappings are merged, everything
+else replaced) and the result validated by the task's config model, a :class:`BrakeEnvConfig`.
+Errors name the file or argument, the field and the value, like every other brakegym config.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ from pathlib import Path
 from typing import Any, Literal, Mapping
 
 import yaml
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, model_validator
 
 from .. import config as cfg
 
 
-class SensorNoise(cfg._Strict):
+class SensorNoise(cfg.StrictModel):
     """Standard deviations of zero-mean Gaussian noise added to each measured channel."""
 
     speed_mps: float = Field(ge=0)
@@ -27,7 +28,7 @@ class SensorNoise(cfg._Strict):
     distance_m: float = Field(ge=0)
 
 
-class Range(cfg._Strict):
+class Range(cfg.StrictModel):
     """A closed interval drawn uniformly at reset; ``low == high`` fixes the value."""
 
     low: float
@@ -40,7 +41,7 @@ class Range(cfg._Strict):
         return self
 
 
-class RewardWeights(cfg._Strict):
+class RewardWeights(cfg.StrictModel):
     """Weights of the named reward terms (each term is reported in ``info["reward_terms"]``)."""
 
     tracking_per_mps2_s: float = Field(ge=0)  # deceleration error, integrated over time
@@ -51,7 +52,7 @@ class RewardWeights(cfg._Strict):
     overheat: float = Field(ge=0)  # terminal penalty when a disc exceeds its limit
 
 
-class BrakeEnvConfig(cfg._Strict):
+class BrakeEnvConfig(cfg.StrictModel):
     """What every brakegym environment shares: the train, its brake, sensors and timing."""
 
     name: str
@@ -101,72 +102,30 @@ class BrakeEnvConfig(cfg._Strict):
         return 1.0 / self.simulation_frequency_hz
 
 
-class StationStopConfig(BrakeEnvConfig):
-    """The train approaches a platform and stops with its reference point on the mark."""
-
-    # The mark is placed where braking at this constant deceleration, after the brake's
-    # response time, stops the train: it sets how hard the task is.
-    required_deceleration_mps2: Range
-    response_allowance_s: float = Field(ge=0)
-    success_tolerance_m: float = Field(gt=0)
-    overrun_limit_m: float = Field(gt=0)
-
-
-class DecelTrackingConfig(BrakeEnvConfig):
-    """Follow a demanded deceleration: service-brake steps as a brake control unit receives them."""
-
-    demand_levels_mps2: list[float] = Field(min_length=1)
-    first_demand_time_s: float = Field(ge=0)
-    demand_hold_s: Range  # how long each level is held
-
-    @model_validator(mode="after")
-    def _levels_positive(self) -> "DecelTrackingConfig":
-        bad = [level for level in self.demand_levels_mps2 if not level > 0]
-        if bad:
-            raise ValueError(f"demand_levels_mps2 must be positive, got {bad}")
-        if self.demand_hold_s.low <= 0:
-            raise ValueError(f"demand_hold_s.low = {self.demand_hold_s.low} must be positive")
-        return self
-
-
-class EmergencyStopConfig(BrakeEnvConfig):
-    """Stop as short as possible without any disc exceeding its temperature limit."""
-
-    disc_temperature_limit_C: float
-
-
-CONFIG_MODELS: dict[str, type[BrakeEnvConfig]] = {
-    "station_stop": StationStopConfig,
-    "decel_tracking": DecelTrackingConfig,
-    "emergency_stop": EmergencyStopConfig,
-}
-
-
-def _merged(base: dict[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:
-    merged = dict(base)
+def merged(base: dict[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with ``update`` merged in key by key: nested mappings merged, everything else
+    replaced."""
+    result = dict(base)
     for key, value in update.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
-            merged[key] = _merged(merged[key], value)
+        if isinstance(value, Mapping) and isinstance(result.get(key), dict):
+            result[key] = merged(result[key], value)
         else:
-            merged[key] = value
-    return merged
+            result[key] = value
+    return result
 
 
 def default_config(name: str) -> dict[str, Any]:
     """The default config of environment ``name`` as a plain dict, read from
-    ``configs/environments/<name>.yaml``."""
-    if name not in CONFIG_MODELS:
-        raise cfg.ConfigError(f"unknown environment config {name!r}; known: {sorted(CONFIG_MODELS)}")
-    path = cfg.config_dir() / "environments" / f"{name}.yaml"
-    if not path.is_file():
-        raise cfg.ConfigError(f"environment config file {path} is missing")
-    return yaml.safe_load(path.read_text())
+    ``environments/<name>.yaml`` on the config search path."""
+    return cfg.read_yaml(cfg.find("environments", name))
 
 
-def environment_config(name: str, user: Mapping[str, Any] | str | Path | None = None) -> BrakeEnvConfig:
-    """Defaults of environment ``name`` merged with ``user`` (a dict or a YAML file), validated,
-    with the referenced vehicle, pneumatics and set-up checked to exist."""
-    source = f"configs/environments/{name}.yaml"
+def load_environment_config(
+    name: str, model: type[BrakeEnvConfig], user: Mapping[str, Any] | str | Path | None = None
+) -> BrakeEnvConfig:
+    """Defaults of environment ``name`` merged with ``user`` (a dict or a YAML file), validated as
+    ``model``, with the referenced vehicle, pneumatics, set-up and effect set checked to exist."""
+    source = f"environments/{name}.yaml"
     data = default_config(name)
     if isinstance(user, (str, Path)):
         path = Path(user)
@@ -180,11 +139,8 @@ def environment_config(name: str, user: Mapping[str, Any] | str | Path | None = 
     elif user:
         source = f"config argument (over {source})"
     if user:
-        data = _merged(data, user)
-    try:
-        env_config = CONFIG_MODELS[name].model_validate(data)
-    except ValidationError as exc:
-        raise cfg.ConfigError(cfg._describe_validation_error(Path(source), exc)) from None
+        data = merged(data, user)
+    env_config = cfg.validate(data, model, source)
     vehicle = cfg.load("vehicles", env_config.vehicle)
     cfg.load("pneumatics", env_config.actuation)
     cfg.load("setups", env_config.setup)
@@ -192,7 +148,8 @@ def environment_config(name: str, user: Mapping[str, Any] | str | Path | None = 
     if unknown:
         raise cfg.ConfigError(f"{source}: field 'loads' = {unknown}: not loads of vehicle {vehicle.name!r} ({sorted(vehicle.loads)})")
     if env_config.effects is not None:
-        from ..recordings.effects import load_effects  # the recordings package needs pandas: only here
+        # Imported here: the effect library builds on the simulator, which a config needs not load.
+        from ..effects import load_effects
 
         try:
             load_effects(env_config.effects)

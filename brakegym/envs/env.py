@@ -1,5 +1,7 @@
 """The Gymnasium environments: one train (:class:`BrakeEnv`) or N trains in one numpy call
-(:class:`BrakeVectorEnv`), both around the same :class:`BrakeCore`.
+(:class:`BrakeVectorEnv`), both around the same :class:`BrakeCore`, for any task of
+:mod:`brakegym.envs.tasks` (each task module documents what it adds: observation columns, reward
+terms, termination, reset options, info, and its version history).
 
 Spaces
 ------
@@ -12,36 +14,23 @@ through the pneumatic model (dead time, then first-order lag; ``actuation`` EP o
 Observation: ``Box(float32)`` of, in order, the measured speed (m/s), the deceleration (m/s^2, the
 mean over the last control step from the speed sensor, positive while slowing), the cylinder
 pressure of each axle (bar), the friction-surface temperature of every disc or of the
-instrumented one only (``observed_temperatures``, deg C), then the task's columns:
-distance to go to the mark and the deceleration that would stop on it, v^2 / (2 distance), from
-the measured values, capped at 3 m/s^2 (StationStop, m and m/s^2), or the demanded deceleration
-(DecelTracking, m/s^2).
-Each channel carries Gaussian noise of the config's ``sensor_noise``. ``observation_names``
-lists the columns.
+instrumented one only (``observed_temperatures``, deg C), then the task's columns. Each channel
+carries Gaussian noise of the config's ``sensor_noise``. ``observation_names`` lists the columns.
 
-Reward: the sum of named terms reported in ``info["reward_terms"]`` (weights in the config):
+Reward: the sum of the task's named terms, reported in ``info["reward_terms"]`` (weights in the
+config's ``reward``).
 
-- StationStop: ``tracking`` (-|deceleration - v^2/(2 distance to go)| dt), ``jerk``
-  (-|change of deceleration| per control step / dt), ``stop_accuracy`` at the end (+bonus on
-  success, -penalty per metre of stop error);
-- DecelTracking: ``tracking`` (-|deceleration - demand| dt), ``jerk``;
-- EmergencyStop: ``distance`` (-per km travelled), ``overheat`` (-penalty once a disc exceeds
-  ``disc_temperature_limit_C``).
-
-Termination: ``terminated`` at standstill, and on a task failure (StationStop: passing the mark by
-more than ``overrun_limit_m``; EmergencyStop: a disc over its limit). ``truncated`` when the
+Termination: ``terminated`` at standstill and on the task's failures; ``truncated`` when the
 episode reaches ``max_episode_time_s``. ``info["is_success"]`` says whether an ended episode met
-the task (StationStop: standstill within ``success_tolerance_m`` of the mark, never overrun).
+the task.
 
 Info: ``reward_terms``, ``is_success``, the true physical state (``speed_mps``, ``position_m``,
 ``deceleration_mps2``, ``cylinder_pressure_bar``, ``command_bar``, per-disc ``mu``,
 ``friction_temperature_C``, ``disc_temperature_C``, ``mass_kg``, ``time_s``) and the task's
-quantities (``stop_error_m``, ``demand_mps2``, ...), with ``peak_jerk_mps3`` and
-``peak_friction_temperature_C`` of the episode so far.
+quantities, with ``peak_jerk_mps3`` and ``peak_friction_temperature_C`` of the episode so far.
 
 Reset options (``reset(options={...})``) fix what is otherwise drawn: ``initial_speed_kmh``,
-``load``, ``setup`` (friction scatter set-up), ``initial_disc_temperature_C``, and per task
-``distance_to_mark_m`` (StationStop), ``demand_mps2`` / ``demand_hold_s`` (DecelTracking).
+``load``, ``setup`` (friction scatter set-up), ``initial_disc_temperature_C``, and the task's own.
 
 Physics: ``simulation_frequency_hz / policy_frequency_hz`` RK4 steps per control step (20 Hz and
 10 Hz by default). With ``carry_over_thermal_state`` the discs start each episode as the last one
@@ -49,7 +38,7 @@ left them (consecutive stops heat them). ``effects`` names an effect set (``conf
 YAML path, e.g. what ``brakegym diagnose --effects-out`` writes) that every train runs with: a
 gradient, a friction level, wet pads, ... applied afresh to each episode's train, and the sensor
 effects (speed-sensor scale, temperature-sensor lag) in the observation; see
-:class:`brakegym.envs.core.TrainFleet`. State-dependent effects (wet pads, fade, adhesion) run
+:class:`brakegym.envs.fleet.TrainFleet`. State-dependent effects (wet pads, fade, adhesion) run
 in Python at every RK4 stage, which slows a step several times.
 
 Version history
@@ -60,29 +49,33 @@ Version history
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar, Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .config import BrakeEnvConfig, environment_config
-from .core import TrainFleet
-from .tasks import TASKS, BrakeTask, Outcome
+from .config import BrakeEnvConfig
+from .fleet import TrainFleet
+from .options import FLEET_OPTIONS
+from .registry import environment_config, task_class
+from .task import BrakeTask, Outcome
 
-FLEET_OPTIONS = ("initial_speed_kmh", "load", "setup", "initial_disc_temperature_C")
 RENDER_MODES = ["human", "rgb_array", "ansi"]
 
 
 class BrakeCore:
-    """Fleet + task + spaces: one control step for N trains, no autoreset."""
+    """Fleet + task + spaces: one control step for N trains, no autoreset. ``task`` is an
+    environment id or a task name (:func:`.registry.task_class`)."""
 
-    def __init__(self, task_name: str, config: Mapping[str, Any] | str | Path | None, n_trains: int):
-        self.config: BrakeEnvConfig = environment_config(task_name, config)
+    def __init__(self, task: str, config: Mapping[str, Any] | str | Path | None, n_trains: int):
+        task_type = task_class(task)
+        self.config: BrakeEnvConfig = environment_config(task_type.name, config)
         self.fleet = TrainFleet(self.config, n_trains)
-        self.task: BrakeTask = TASKS[task_name](self.config, self.fleet)
+        self.task: BrakeTask = task_type(self.config, self.fleet)
         self.n = n_trains
         fleet = self.fleet
         axles = fleet.plant.n_axles
@@ -165,15 +158,18 @@ class BrakeCore:
 
 
 class BrakeEnv(gym.Env):
-    """One train. See the module docstring for spaces, reward, termination and options."""
+    """One train braking in ``task`` (an environment id or task name, e.g. ``"station_stop"``),
+    what ``gymnasium.make`` builds. See the module documentation for spaces, reward, termination
+    and options, and the task's module for what it adds."""
 
     metadata = {"render_modes": RENDER_MODES, "render_fps": 10}
-    task_name: ClassVar[str]
 
-    def __init__(self, config: Mapping[str, Any] | str | Path | None = None, render_mode: str | None = None):
+    def __init__(
+        self, task: str, config: Mapping[str, Any] | str | Path | None = None, render_mode: str | None = None
+    ):
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode {render_mode!r}: choose one of {RENDER_MODES}")
-        self.core = BrakeCore(self.task_name, config, 1)
+        self.core = BrakeCore(task, config, 1)
         self.config = self.core.config
         self.observation_space = self.core.single_observation_space
         self.action_space = self.core.single_action_space
@@ -235,7 +231,8 @@ class BrakeEnv(gym.Env):
 
 
 class BrakeVectorEnv(VectorEnv):
-    """N trains stepped in one numpy call, autoreset in the same step (Gymnasium's SAME_STEP):
+    """N trains braking in ``task``, what ``gymnasium.make_vec`` builds: stepped in one numpy call,
+    autoreset in the same step (Gymnasium's SAME_STEP):
     an ended train's last observation and info are in ``info["final_obs"]`` /
     ``info["final_info"]`` (rows valid where ``info["_final_obs"]``), and its row of the returned
     observation already starts the next episode. Info entries are arrays over the trains; the
@@ -245,10 +242,15 @@ class BrakeVectorEnv(VectorEnv):
     ended, see :attr:`ended`."""
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
-    task_name: ClassVar[str]
 
-    def __init__(self, num_envs: int = 1, config: Mapping[str, Any] | str | Path | None = None, autoreset: bool = True):
-        self.core = BrakeCore(self.task_name, config, num_envs)
+    def __init__(
+        self,
+        task: str,
+        num_envs: int = 1,
+        config: Mapping[str, Any] | str | Path | None = None,
+        autoreset: bool = True,
+    ):
+        self.core = BrakeCore(task, config, num_envs)
         self.config = self.core.config
         self.num_envs = num_envs
         self.autoreset = autoreset

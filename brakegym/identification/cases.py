@@ -25,8 +25,9 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, dyno_stops, dynamometer_plant
+from ..applications import DEFAULT_STEP_S, dyno_stops
 from ..physics import DiscThermalModel, FrictionDraw, FrictionLaw
+from ..plants import dynamometer_plant, friction_law, thermal_model
 from .parameters import ParameterSpace
 
 # Dyno curve CSV columns (long format: one row per load case and sample instant).
@@ -74,7 +75,7 @@ def plant_groups(space: ParameterSpace, rows: np.ndarray) -> list[list[int]]:
 
 def _laws(space: ParameterSpace, row: np.ndarray) -> tuple[cfg.FrictionMaterial, FrictionLaw, DiscThermalModel]:
     material, disc = space.configs(row)
-    return material, FrictionLaw.from_config(material), DiscThermalModel.from_config(disc)
+    return material, friction_law(material), thermal_model(disc)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -24,7 +24,7 @@ KIND = "identification"
 PER_APPLICATION_FIELDS = ("initial_mu", "power_coefficient_per_s")
 
 
-class ParameterBound(cfg._Strict):
+class ParameterBound(cfg.StrictModel):
     """One fittable parameter: its symbol, the config field it sets and its physical bounds."""
 
     symbol: str
@@ -40,7 +40,7 @@ class ParameterBound(cfg._Strict):
         return self
 
 
-class Interval(cfg._Strict):
+class Interval(cfg.StrictModel):
     lower: float = Field(ge=0)
     upper: float = Field(gt=0)
 
@@ -51,12 +51,12 @@ class Interval(cfg._Strict):
         return self
 
 
-class IdentifiabilityRule(cfg._Strict):
+class IdentifiabilityRule(cfg.StrictModel):
     max_relative_ci_half_width: float = Field(gt=0)
     min_normalised_singular_value: float = Field(gt=0, lt=1)
 
 
-class StochasticSettings(cfg._Strict):
+class StochasticSettings(cfg.StrictModel):
     initial_mu_sigma: Interval
     power_coefficient_sigma_per_s: Interval
     global_fraction: Interval
@@ -74,7 +74,7 @@ class StochasticSettings(cfg._Strict):
 ChannelName = Literal["mu", "T_fric_C", "speed_mps", "decel_mps2", "T_disc_C"]
 
 
-class IdentificationConfig(cfg._Strict):
+class IdentificationConfig(cfg.StrictModel):
     """``configs/identification/<name>.yaml``: bounds, subsets, channel weights, rules."""
 
     name: str
@@ -135,15 +135,10 @@ class IdentificationConfig(cfg._Strict):
 
 
 def load_identification_config(name_or_path: str | Path = "default") -> IdentificationConfig:
-    """``configs/identification/<name>.yaml``, or a YAML file given by path."""
+    """``identification/<name>.yaml`` on the config search path, or a YAML file given by path."""
     path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml"):
-        path = cfg.config_dir() / KIND / f"{name_or_path}.yaml"
-        if not path.is_file():
-            folder = cfg.config_dir() / KIND
-            known = sorted(p.stem for p in folder.glob("*.yaml")) if folder.is_dir() else []
-            raise cfg.ConfigError(f"unknown identification config {str(name_or_path)!r}: no file {path}; known: {known}")
-    return cfg.load_file(path, IdentificationConfig)
+    source = path if path.suffix in (".yaml", ".yml") else cfg.find(KIND, str(name_or_path))
+    return cfg.load_file(source, IdentificationConfig)
 
 
 def owner_and_field(field: str) -> tuple[Literal["material", "disc"], tuple[str, ...]]:
@@ -165,7 +160,7 @@ def owner_and_field(field: str) -> tuple[Literal["material", "disc"], tuple[str,
     )
 
 
-def _get(model: cfg._Strict, path: tuple[str, ...]) -> float:
+def _get(model: cfg.StrictModel, path: tuple[str, ...]) -> float:
     value = model
     for part in path:
         value = getattr(value, part)

@@ -7,23 +7,27 @@
 - :mod:`.scatter`: the stochastic friction set-ups DS, MCS-100, MCS-75/25 (paper Eq. 13).
 
 Every function works on numpy arrays that broadcast over a batch: trains along the first axis,
-then axles and the discs of each axle. Nothing here integrates in time; that is the simulator's job.
+then axles and the discs of each axle. Nothing here integrates in time (that is the simulator's
+job), and nothing here reads configs: :mod:`brakegym.plants` builds these objects from them.
 """
 
 from .friction import FrictionLaw
-from .mechanics import RunningResistance, brake_force_N, sliding_speed_mps
-from .pneumatics import BrakeCylinder, Caliper
-from .scatter import FrictionDraw, draw_friction, draw_running_resistance
-from .thermal import DiscThermalModel, HeatFlows
+from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
+from .pneumatics import BrakeCylinder, CaliperLaw
+from .scatter import FrictionDraw, ScatterPartition, StochasticFriction, draw_friction, draw_running_resistance
+from .thermal import CooledSurface, DiscThermalModel, HeatFlows
 
 __all__ = [
     "BrakeCylinder",
-    "Caliper",
+    "CaliperLaw",
+    "CooledSurface",
     "DiscThermalModel",
     "FrictionDraw",
     "FrictionLaw",
     "HeatFlows",
-    "RunningResistance",
+    "RunningResistanceLaw",
+    "ScatterPartition",
+    "StochasticFriction",
     "brake_force_N",
     "draw_friction",
     "draw_running_resistance",

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import FrictionMaterial
 from .elementary import fractional_power, select
 
 ArrayLike = float | np.ndarray
@@ -88,25 +87,6 @@ class FrictionLaw:
     mu_min: float
     mu_max: float
     min_sliding_speed_mps: float
-
-    @classmethod
-    def from_config(cls, material: FrictionMaterial) -> "FrictionLaw":
-        return cls(
-            power_coefficient_per_s=material.power_coefficient_per_s,
-            power_exponent=material.power_exponent,
-            decay_coefficient_per_s=material.decay_coefficient_per_s,
-            decay_exponent=material.decay_exponent,
-            temperature_coefficient_per_s=material.temperature_coefficient_per_s,
-            temperature_exponent=material.temperature_exponent,
-            clamp_force_coefficient_per_s=material.clamp_force_coefficient_per_s,
-            clamp_force_exponent=material.clamp_force_exponent,
-            reference_power_W=material.reference_power_W,
-            reference_temperature_K=material.reference_temperature_K,
-            reference_clamp_force_N=material.reference_clamp_force_N,
-            mu_min=material.mu_min,
-            mu_max=material.mu_max,
-            min_sliding_speed_mps=material.min_sliding_speed_mps,
-        )
 
     def bounded(self, mu: np.ndarray) -> np.ndarray:
         """mu kept inside [mu_min, mu_max] so that the fractional powers stay real (spec)."""

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import RunningResistance as RunningResistanceConfig
 from .elementary import select
 
 
@@ -50,7 +49,7 @@ def effective_mu(retarding_force_N, nominal_resistance_N, weighted_clamp_force_N
 
 
 @dataclass(frozen=True)
-class RunningResistance:
+class RunningResistanceLaw:
     """F_R(v) = A + B v + C v^2 (Eq. 14). ``A_N`` may be an array, one value per train (the
     running-resistance scatter of the MCS set-ups)."""
 
@@ -59,11 +58,7 @@ class RunningResistance:
     C_N_per_mps2: float
 
     @classmethod
-    def from_config(cls, config: RunningResistanceConfig) -> "RunningResistance":
-        return cls(A_N=config.A_N, B_N_per_mps=config.B_N_per_mps, C_N_per_mps2=config.C_N_per_mps2)
-
-    @classmethod
-    def none(cls) -> "RunningResistance":
+    def none(cls) -> "RunningResistanceLaw":
         """No resistance: the dynamometer."""
         return cls(A_N=0.0, B_N_per_mps=0.0, C_N_per_mps2=0.0)
 

@@ -15,8 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import Caliper as CaliperConfig
-from ..config import Pneumatics
 
 
 def clamp_force_from_pressure_N(pressure_bar, gain_N_per_bar, threshold_bar):
@@ -28,10 +26,6 @@ def clamp_force_from_pressure_N(pressure_bar, gain_N_per_bar, threshold_bar):
 class BrakeCylinder:
     dead_time_s: float
     time_constant_s: float
-
-    @classmethod
-    def from_config(cls, config: Pneumatics) -> "BrakeCylinder":
-        return cls(dead_time_s=config.dead_time_s, time_constant_s=config.time_constant_s)
 
     def lag_factor(self, elapsed_s: float) -> float:
         """exp(-t / tau): the share of the distance to the target still left after ``elapsed_s``."""
@@ -55,16 +49,12 @@ class BrakeCylinder:
 
 
 @dataclass(frozen=True)
-class Caliper:
+class CaliperLaw:
     gain_N_per_bar: float
     threshold_bar: float
 
     @classmethod
-    def from_config(cls, config: CaliperConfig) -> "Caliper":
-        return cls(gain_N_per_bar=config.gain_N_per_bar, threshold_bar=config.threshold_bar)
-
-    @classmethod
-    def identity(cls) -> "Caliper":
+    def identity(cls) -> "CaliperLaw":
         """For a rig whose actuator is commanded in clamp force directly (the dynamometer)."""
         return cls(gain_N_per_bar=1.0, threshold_bar=0.0)
 

@@ -21,7 +21,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import FrictionMaterial, RunningResistance, ScatterSetup
+
+@dataclass(frozen=True)
+class StochasticFriction:
+    """The scatter of paper Eq. 13 for one pad material: mu_0 ~ N(initial_mu, initial_mu_sigma)
+    and a ~ N(power_coefficient_per_s, power_coefficient_sigma_per_s); a drawn mu_0 must lie in
+    [mu_min, mu_max]. ``material`` names the material in error messages."""
+
+    initial_mu: float
+    initial_mu_sigma: float
+    power_coefficient_per_s: float
+    power_coefficient_sigma_per_s: float
+    mu_min: float
+    mu_max: float
+    material: str = ""
+
+
+@dataclass(frozen=True)
+class ScatterPartition:
+    """A Monte-Carlo set-up (spec Section 5): the fractions of each sigma drawn globally per
+    application and individually per disc, and whether the running resistance's A scatters."""
+
+    global_fraction: float
+    individual_fraction: float
+    resistance_scatter: bool
 
 
 @dataclass(frozen=True)
@@ -36,7 +59,7 @@ def _partitioned_normal(
     rng: np.random.Generator,
     nominal: float,
     sigma: float,
-    setup: ScatterSetup,
+    partition: ScatterPartition,
     disc_shape: tuple[int, ...],
     n_applications: int,
 ) -> np.ndarray:
@@ -45,13 +68,13 @@ def _partitioned_normal(
     # of random numbers in every set-up (common random numbers across set-ups).
     global_part = rng.standard_normal((n_applications,) + (1,) * len(disc_shape))
     individual_part = rng.standard_normal(shape)
-    return nominal + sigma * (setup.global_fraction * global_part + setup.individual_fraction * individual_part)
+    return nominal + sigma * (partition.global_fraction * global_part + partition.individual_fraction * individual_part)
 
 
 def draw_friction(
     rng: np.random.Generator,
-    material: FrictionMaterial,
-    setup: ScatterSetup,
+    friction: StochasticFriction,
+    partition: ScatterPartition,
     n_applications: int,
     disc_shape: tuple[int, int],
 ) -> FrictionDraw:
@@ -59,32 +82,32 @@ def draw_friction(
     (axles, discs per axle). Values are not clipped: mu_0 stays within the model's bounds by
     construction of the sigmas (a draw outside them is refused, not moved)."""
     initial_mu = _partitioned_normal(
-        rng, material.initial_mu, material.scatter.initial_mu_sigma, setup, disc_shape, n_applications
+        rng, friction.initial_mu, friction.initial_mu_sigma, partition, disc_shape, n_applications
     )
     power_coefficient = _partitioned_normal(
         rng,
-        material.power_coefficient_per_s,
-        material.scatter.power_coefficient_sigma_per_s,
-        setup,
+        friction.power_coefficient_per_s,
+        friction.power_coefficient_sigma_per_s,
+        partition,
         disc_shape,
         n_applications,
     )
-    if np.any(initial_mu < material.mu_min) or np.any(initial_mu > material.mu_max):
+    if np.any(initial_mu < friction.mu_min) or np.any(initial_mu > friction.mu_max):
         raise ValueError(
-            f"a drawn initial mu lies outside [{material.mu_min}, {material.mu_max}]: the scatter "
-            f"sigma {material.scatter.initial_mu_sigma} of material {material.name!r} is too large"
+            f"a drawn initial mu lies outside [{friction.mu_min}, {friction.mu_max}]: the scatter "
+            f"sigma {friction.initial_mu_sigma} of material {friction.material!r} is too large"
         )
     return FrictionDraw(initial_mu=initial_mu, power_coefficient_per_s=power_coefficient)
 
 
 def draw_running_resistance(
-    rng: np.random.Generator, resistance: RunningResistance, setup: ScatterSetup, n_applications: int
+    rng: np.random.Generator, A_N: float, A_sigma_N: float, partition: ScatterPartition, n_applications: int
 ) -> np.ndarray:
-    """A of F_R per application, N(A, sigma_A) where the set-up scatters it, else nominal.
+    """A of F_R per application, N(A_N, A_sigma_N) where the set-up scatters it, else ``A_N``.
 
     As in the spec, the draw is not truncated: with sigma 1600 N around 2500 N about 6 % of the
     draws are negative (a net push), which the paper's Gaussian allows."""
     draw = rng.standard_normal(n_applications)
-    if not setup.resistance_scatter:
-        return np.full(n_applications, resistance.A_N)
-    return resistance.A_N + resistance.A_sigma_N * draw
+    if not partition.resistance_scatter:
+        return np.full(n_applications, A_N)
+    return A_N + A_sigma_N * draw

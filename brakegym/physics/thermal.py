@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import ConvectionLaw, DiscThermal
 from .elementary import fractional_power
 
 
@@ -87,6 +86,17 @@ class HeatFlows:
 
 
 @dataclass(frozen=True)
+class CooledSurface:
+    """A surface cooled by the air: film coefficient h(v_fric) = h0 + (h_ref - h0)
+    (v_fric / v_ref)^exponent (Eq. 10) over ``area_m2``."""
+
+    h0_W_per_m2K: float
+    h_ref_W_per_m2K: float
+    exponent: float
+    area_m2: float
+
+
+@dataclass(frozen=True)
 class DiscThermalModel:
     friction_layer_heat_capacity_J_per_K: float
     disc_body_heat_capacity_J_per_K: float
@@ -96,14 +106,10 @@ class DiscThermalModel:
     conductance_min_W_per_K: float
     heat_fraction_into_disc: float
     reference_sliding_speed_mps: float
-    surface: ConvectionLaw
-    ventilation: ConvectionLaw
+    surface: CooledSurface  # the friction surfaces (Q_surf)
+    ventilation: CooledSurface  # the ventilation channels of the disc body (Q_vent)
 
-    @classmethod
-    def from_config(cls, disc: DiscThermal) -> "DiscThermalModel":
-        return cls(**{k: getattr(disc, k) for k in cls.__dataclass_fields__})
-
-    def _film_conductance_W_per_K(self, law: ConvectionLaw, sliding_speed_mps: np.ndarray) -> np.ndarray:
+    def _film_conductance_W_per_K(self, law: CooledSurface, sliding_speed_mps: np.ndarray) -> np.ndarray:
         """h(v) A of Eq. 10 for one cooled surface."""
         return film_conductance_W_per_K(
             sliding_speed_mps,

@@ -1,4 +1,4 @@
-"""The recording format (``shared/spec/recording-format.md``): read, validate and write.
+"""The recording format (``docs/recording-format.md``): read, validate and write.
 
 A recording is one brake application of one vehicle: ``<stem>.csv`` (the time series) and
 ``<stem>.json`` (what was measured) in one folder; a data set is a folder of recordings.
@@ -56,8 +56,8 @@ def pressure_column(axle: int) -> str:
 
 
 @lru_cache(maxsize=32)
-def _named_vehicle(config_dir: str, name: str) -> cfg.Vehicle:
-    # Keyed on the config folder too: tests point BRAKEGYM_CONFIG_DIR elsewhere.
+def _named_vehicle(search_path: tuple[str, ...], name: str) -> cfg.Vehicle:
+    # Keyed on the config search path too: a user's folder may hold a vehicle of the same name.
     return cfg.load("vehicles", name)
 
 
@@ -87,7 +87,7 @@ class RecordingMetadata(BaseModel):
             known = cfg.available("vehicles")
             if self.vehicle not in known:
                 raise ValueError(f"field 'vehicle' = {self.vehicle!r}: unknown vehicle; known: {', '.join(known)}")
-            vehicle = _named_vehicle(str(cfg.config_dir()), self.vehicle)
+            vehicle = _named_vehicle(tuple(str(f) for f in cfg.search_path()), self.vehicle)
         else:
             try:
                 vehicle = cfg.Vehicle.model_validate(self.vehicle)

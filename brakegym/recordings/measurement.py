@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import KELVIN, STANDARD_GRAVITY_MPS2, EffectedModel
+from ..effects import EffectedModel
+from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
 from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 
 
@@ -101,8 +102,8 @@ class MeasurementModel:
         self._decel = grid.decel_mps2[:, index]
         if instrumented_disc is not None:
             surface_K = grid.friction_temperature_K[:, instrumented_disc - 1, index]
-            self._surface_C = surface_K - KELVIN
-            self._sensor_C = first_order_lag(grid.time_s, surface_K, self.temperature_lag_s) - KELVIN
+            self._surface_C = surface_K - ZERO_CELSIUS_K
+            self._sensor_C = first_order_lag(grid.time_s, surface_K, self.temperature_lag_s) - ZERO_CELSIUS_K
         stop = self.stop_time_s
         # The step in which the train stops: v falls linearly to 0 at the stop instant.
         self._stop_step = int(np.searchsorted(grid.time_s, stop, side="left")) - 1 if np.isfinite(stop) else -1

@@ -35,11 +35,14 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from ..applications import MAX_STOP_TIME_S, train_plant
-from ..simulator import FRICTION_HEAT, MU, T_FRIC, BatchConditions, Plant, PressureSource, PrescribedPressure, Simulator
-from ..simulator import POSITION as POSITION_STATE
-from ..simulator import SPEED as SPEED_STATE
-from .effects import KELVIN, Effect, EffectedModel, apply_effects
+from ..applications import MAX_STOP_TIME_S
+from ..effects import Effect, EffectedModel, apply_effects
+from ..plants import train_plant
+from ..simulator import BatchConditions, PressureSource, PrescribedPressure, Simulator
+from ..simulator.state import FRICTION_HEAT, MU, T_FRIC
+from ..simulator.state import POSITION as POSITION_STATE
+from ..simulator.state import SPEED as SPEED_STATE
+from ..units import ZERO_CELSIUS_K
 from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, Recording, RecordingError
 from .measurement import GridTrajectory, MeasurementModel
 
@@ -48,18 +51,6 @@ REPLAY_STEP_S = 0.1
 HALF_SPEED_SQUARED = "half_speed_squared_m2ps2"  # v^2 / 2, compared over distance
 # Below this measured speed a train counts as standing (sensor noise is a few cm/s).
 STANDSTILL_SPEED_MPS = 0.1
-
-_plants: dict[tuple[str, str], Plant] = {}
-
-
-def plant_for(vehicle: cfg.Vehicle) -> Plant:
-    """The train plant of ``vehicle``, built once per vehicle and config folder (fits replay many
-    times)."""
-    key = (str(cfg.config_dir()), vehicle.model_dump_json())
-    if key not in _plants:
-        _plants[key] = train_plant(vehicle)
-    return _plants[key]
-
 
 def simulate_grid(
     model: EffectedModel,
@@ -207,7 +198,7 @@ def replay_batch(
                 f"{vehicle.name!r}; replay recordings of different vehicles in separate batches"
             )
     n = len(recordings)
-    plant = plant_for(vehicle)
+    plant = train_plant(vehicle)
     material = cfg.load("materials", vehicle.material)
     disc_shape = (n, *plant.disc_shape)
 
@@ -227,9 +218,9 @@ def replay_batch(
         initial_mu=np.full(disc_shape, material.initial_mu),
         power_coefficient_per_s=np.full(disc_shape, material.power_coefficient_per_s),
         running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N),
-        initial_friction_temperature_K=np.broadcast_to((initial_C + KELVIN)[:, None, None], disc_shape).copy(),
-        initial_disc_temperature_K=np.broadcast_to((initial_C + KELVIN)[:, None, None], disc_shape).copy(),
-        ambient_temperature_K=np.array([r.metadata.ambient_C + KELVIN for r in recordings]),
+        initial_friction_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
+        initial_disc_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
+        ambient_temperature_K=np.array([r.metadata.ambient_C + ZERO_CELSIUS_K for r in recordings]),
     )
     model = apply_effects(plant, conditions, effects)
 

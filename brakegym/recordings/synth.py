@@ -60,12 +60,14 @@ import pandas as pd
 from .. import __version__
 from .. import config as cfg
 from ..applications import CommandSchedule
-from ..physics import BrakeCylinder, RunningResistance, draw_friction, draw_running_resistance
+from ..effects import EFFECTS, Effect, RunningResistanceEffect, apply_effects, effect_class
+from ..physics import BrakeCylinder, RunningResistanceLaw
+from ..plants import brake_cylinder, draw_scatter, train_plant
 from ..simulator import BatchConditions, CommandedPressure
-from .effects import EFFECTS, KELVIN, Effect, RunningResistanceEffect, apply_effects, effect_class
+from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, Recording, RecordingMetadata, pressure_column, write_recording
 from .measurement import MeasurementModel
-from .replay import plant_for, simulate_grid
+from .replay import simulate_grid
 
 VEHICLE = "emu_8axle"
 SCATTER_SETUP = "mcs-75-25"
@@ -298,7 +300,7 @@ def synthesize(
     vehicle = cfg.load("vehicles", VEHICLE)
     material = cfg.load("materials", vehicle.material)
     setup = cfg.load("setups", scatter_setup)
-    plant = plant_for(vehicle)
+    plant = train_plant(vehicle)
 
     requests = random_requests(effect_rng) if random_effects else list(effects)
     chosen, effect_entries = resolve_effects(requests, effect_rng)
@@ -306,8 +308,7 @@ def synthesize(
     applications = draw_applications(campaign_rng, vehicle, n_recordings)
     decel_source = "accelerometer" if campaign_rng.random() < ACCELEROMETER_PROBABILITY else "speed"
     n = n_recordings
-    draw = draw_friction(scatter_rng, material, setup, n, plant.disc_shape)
-    drawn_A = draw_running_resistance(scatter_rng, vehicle.running_resistance, setup, n)
+    draw, drawn_A = draw_scatter(scatter_rng, vehicle, setup, n)
     scatter_A = drawn_A - vehicle.running_resistance.A_N
 
     offset: dict[str, Any] | None = None
@@ -322,7 +323,7 @@ def synthesize(
             resistance_A = drawn_A + offset["A_shift_N"]
             plant = dataclasses.replace(
                 plant,
-                running_resistance=RunningResistance(
+                running_resistance=RunningResistanceLaw(
                     A_N=nominal.A_N + offset["A_shift_N"],
                     B_N_per_mps=nominal.B_N_per_mps * offset["B_factor"],
                     C_N_per_mps2=nominal.C_N_per_mps2 * offset["C_factor"],
@@ -333,18 +334,18 @@ def synthesize(
             power_coefficient = power_coefficient + offset["power_coefficient_shift_per_s"]
 
     disc_shape = (n, *plant.disc_shape)
-    initial_K = np.array([a.initial_disc_C for a in applications]) + KELVIN
+    initial_K = np.array([a.initial_disc_C for a in applications]) + ZERO_CELSIUS_K
     conditions = BatchConditions(
         mass_kg=np.array([vehicle.mass_kg(a.load) for a in applications]),
-        initial_speed_mps=np.array([cfg.kmh_to_mps(a.initial_speed_kmh) for a in applications]),
+        initial_speed_mps=np.array([kmh_to_mps(a.initial_speed_kmh) for a in applications]),
         initial_mu=initial_mu,
         power_coefficient_per_s=power_coefficient,
         running_resistance_A_N=resistance_A,
         initial_friction_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
         initial_disc_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
-        ambient_temperature_K=np.array([a.ambient_C for a in applications]) + KELVIN,
+        ambient_temperature_K=np.array([a.ambient_C for a in applications]) + ZERO_CELSIUS_K,
     )
-    cylinders = [BrakeCylinder.from_config(cfg.load("pneumatics", a.actuation)) for a in applications]
+    cylinders = [brake_cylinder(cfg.load("pneumatics", a.actuation)) for a in applications]
     model, grid = _simulate_truth(plant, conditions, chosen, scatter_A, applications, cylinders)
 
     recordings = []

@@ -1,0 +1,264 @@
+"""``brakegym demo | dyno | simulate | mcs | trends``: simulations of the rig and the train.
+
+    brakegym demo      emergency stops of the 16-disc train from 100 and 160 km/h with scatter
+    brakegym dyno      the 12 dynamometer load cases (paper Table 1), deterministic
+    brakegym simulate  one train stop
+    brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
+    brakegym trends    the paper's trends recomputed
+
+JSON keys written by ``dyno``, ``simulate`` and ``mcs`` are a public interface and stay stable.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from .. import config as cfg
+from .common import finite_non_negative, finite_positive, non_negative_int, positive_int, progress, write_json
+
+# ------------------------------------------------------------------------------------------------
+
+
+def cmd_dyno(args: argparse.Namespace) -> int:
+    from ..applications import dyno_stops
+
+    rig = cfg.load("rigs", args.rig)
+    cases = [rig.load_case(args.case)] if args.case else list(rig.load_cases)
+    summary = dyno_stops(rig, cases, step_s=args.step)
+    rows = [
+        {
+            "load_case": case.name,
+            "s_m": float(summary.stop_distance_m[i]),
+            "s2_m": float(summary.onset_distance_m[i]),
+            "mu_s": float(summary.mu_s[i, 0]),
+            "t_stop_s": float(summary.stop_time_s[i]),
+            "T_fric_max_C": float(summary.peak_friction_temperature_C[i, 0]),
+        }
+        for i, case in enumerate(cases)
+    ]
+    print(f"{'load case':<13} {'v0 km/h':>8} {'s [m]':>9} {'s2 [m]':>9} {'mu_s':>7} {'t_stop [s]':>10} {'T_max [C]':>9}")
+    for case, row in zip(cases, rows):
+        print(
+            f"{row['load_case']:<13} {case.initial_speed_kmh:8.0f} {row['s_m']:9.2f} {row['s2_m']:9.2f} "
+            f"{row['mu_s']:7.4f} {row['t_stop_s']:10.3f} {row['T_fric_max_C']:9.1f}"
+        )
+    write_json(args.json, rows[0] if args.case else rows)
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from ..applications import TrainApplication, train_stops
+    from ..campaigns import train_monte_carlo
+
+    vehicle = cfg.load("vehicles", args.vehicle)
+    vehicle.load(args.load)
+    vehicle.brake_pressure_bar(args.mode, args.load)
+    cfg.load("pneumatics", args.actuation)
+    app = TrainApplication(
+        load=args.load, brake_mode=args.mode, actuation=args.actuation, initial_speed_kmh=args.v0,
+        command_time_s=args.command_time,
+    )
+    if args.setup == "ds":
+        summary = train_stops(vehicle, [app], step_s=args.step)
+    else:
+        summary, _, _ = train_monte_carlo(vehicle, [app], cfg.load("setups", args.setup), args.seed, args.step, workers=1)
+    result = {
+        "vehicle": vehicle.name,
+        "load": args.load,
+        "brake_mode": args.mode,
+        "actuation": args.actuation,
+        "v0_kmh": args.v0,
+        "setup": args.setup,
+        "seed": args.seed,
+        "cylinder_pressure_bar": vehicle.brake_pressure_bar(args.mode, args.load),
+        "command_time_s": args.command_time,
+        "stop_distance_m": float(summary.stop_distance_m[0]),
+        "stop_time_s": float(summary.stop_time_s[0]),
+        "braking_distance_m": float(summary.braking_distance_m[0]),
+        "braking_time_s": float(summary.braking_time_s[0]),
+        "mu_s_eff": float(summary.mu_s_eff[0]),
+        "mu_s_mean": float(summary.mean_mu_s[0]),
+        "T_fric_max_C": float(summary.peak_temperature_C[0]),
+    }
+    for key in ("stop_distance_m", "stop_time_s", "braking_distance_m", "braking_time_s", "mu_s_eff", "T_fric_max_C"):
+        print(f"{key:<20} {result[key]:10.3f}")
+    write_json(args.json, result)
+    return 0
+
+
+def cmd_mcs(args: argparse.Namespace) -> int:
+    from .. import campaigns
+    from ..campaigns import figures
+
+    setup = cfg.load("setups", args.setup)
+    if args.campaign == "dyno":
+        rig = cfg.load("rigs", cfg.load("campaigns", "dyno2022").rig)
+        total = len(campaigns.dyno_applications(rig))
+        with progress(total, "dyno campaign") as bar:
+            result = campaigns.dyno_campaign(rig, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update)
+        summary = result.load_case_summary()
+        print(f"dynamometer campaign, {setup.name}, seed {args.seed}: {len(result.applications)} applications")
+        print(f"{'load case':<13} {'n':>4} {'mu_s mean':>9} {'mu_s std':>9} {'s mean [m]':>10} {'s std [m]':>9}")
+        for _, row in summary.iterrows():
+            print(f"{row.load_case:<13} {row.n:4d} {row.mu_s_mean:9.4f} {row.mu_s_std:9.4f} {row.s_m_mean:10.1f} {row.s_m_std:9.2f}")
+        payload = {
+            "campaign": "dyno",
+            "setup": setup.name,
+            "seed": args.seed,
+            "step_s": args.step,
+            "applications": len(result.applications),
+            "load_cases": summary.to_dict(orient="records"),
+            "specimens": result.specimen_summary().to_dict(orient="records"),
+        }
+        if args.figures:
+            paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [figures.mu_trend_figure(Path(args.figures))]
+            print("figures: " + ", ".join(str(p) for p in paths))
+        if args.csv:
+            result.applications.to_csv(args.csv, index=False)
+    else:
+        campaign = cfg.load("campaigns", "field2022")
+        total = len(campaigns.field_applications(campaign)) * campaign.repetitions
+        with progress(total, "field campaign") as bar:
+            result = campaigns.field_campaign(campaign, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update)
+        summary = result.application_summary()
+        table = result.applications
+        print(
+            f"field campaign {campaign.name}, {setup.name}, seed {args.seed}: {summary.shape[0]} field applications "
+            f"x {campaign.repetitions} = {len(table)} train stops"
+        )
+        print(f"{'mode':<10} {'v0':>4} {'mu_s,eff mean':>13} {'rel std %':>9} {'braking dist. [m]':>18} {'rel std %':>9}")
+        for (mode, v0), group in table.groupby(["brake_mode", "v0_kmh"]):
+            mu, dist = group.mu_s_eff, group.braking_distance_m
+            print(
+                f"{mode:<10} {v0:4.0f} {mu.mean():13.4f} {100 * mu.std() / mu.mean():9.2f} "
+                f"{dist.mean():18.1f} {100 * dist.std() / dist.mean():9.2f}"
+            )
+        payload = {
+            "campaign": "field",
+            "setup": setup.name,
+            "seed": args.seed,
+            "step_s": args.step,
+            "applications": len(table),
+            "field_applications": summary.to_dict(orient="records"),
+        }
+        if args.figures:
+            paths = figures.field_campaign_figures(result, Path(args.figures))
+            print("figures: " + ", ".join(str(p) for p in paths))
+        if args.csv:
+            table.to_csv(args.csv, index=False)
+    write_json(args.json, payload)
+    return 0
+
+
+def cmd_trends(args: argparse.Namespace) -> int:
+    from ..campaigns.trends import compute_trends
+
+    trends = compute_trends(seed=args.seed, train_applications=args.applications, step_s=args.step, workers=args.workers)
+    print(trends.table())
+    write_json(args.json, trends.as_dict())
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from ..applications import TrainApplication
+    from ..campaigns.figures import demo_figure
+    from ..statistics import sample_statistics
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    setup = cfg.load("setups", "mcs-75-25")
+    out = Path(args.out)
+    summaries = {}
+    rows = []
+    for v0 in (100.0, 160.0):
+        app = TrainApplication(load="empty", brake_mode="emergency", actuation="EP", initial_speed_kmh=v0)
+        summary, _, _ = _recorded_monte_carlo(vehicle, app, setup, args.seed + int(v0), args.runs, args.step)
+        summaries[f"{v0:.0f} km/h"] = summary
+        distance = sample_statistics(summary.braking_distance_m)
+        mu_eff = sample_statistics(summary.mu_s_eff)
+        rows.append(
+            f"| {v0:.0f} | {distance.mean:.1f} | {distance.std:.2f} ({100 * distance.relative_std:.1f} %) | "
+            f"{distance.mean_ci95[0]:.1f} - {distance.mean_ci95[1]:.1f} | {mu_eff.mean:.4f} | "
+            f"{summary.peak_temperature_C.mean():.0f} |"
+        )
+    figure = demo_figure(summaries, out / "demo_train_stops.png")
+    table = "\n".join(
+        [
+            f"emu_8axle, empty, emergency brake (3.3 bar), EP, MCS-75/25 friction scatter, {args.runs} stops per speed, seed {args.seed}",
+            "",
+            "| v0 [km/h] | braking distance [m] | std [m] | 95 % CI of mean [m] | mu_s,eff | peak T_fric [C] |",
+            "|---|---|---|---|---|---|",
+            *rows,
+        ]
+    )
+    (out / "demo_table.md").write_text(table + "\n")
+    print(table)
+    print(f"\nwrote {figure} and {out / 'demo_table.md'}")
+    return 0
+
+
+def _recorded_monte_carlo(vehicle, app, setup, seed, runs, step_s):
+    """Monte-Carlo stops with trajectories (the demo wants the curves, not only summaries)."""
+    from ..applications import train_stops
+    from ..plants import draw_scatter
+
+    draw, resistance = draw_scatter(np.random.default_rng(seed), vehicle, setup, runs)
+    summary = train_stops(vehicle, [app] * runs, draw, resistance, step_s=step_s, record_every=1)
+    return summary, draw, resistance
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    """Register ``demo``, ``dyno``, ``simulate``, ``mcs`` and ``trends``."""
+    from ..applications import DEFAULT_STEP_S
+
+    step = dict(type=finite_positive("--step"), default=DEFAULT_STEP_S, help=f"integration step in s (default {DEFAULT_STEP_S})")
+
+    p = sub.add_parser("demo", help="train emergency stops from 100 and 160 km/h with friction scatter; figure and table")
+    p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
+    p.add_argument("--runs", type=positive_int("--runs"), default=40, help="stops per speed (default 40)")
+    p.add_argument("--seed", type=non_negative_int("--seed"), default=2022)
+    p.add_argument("--step", **step)
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("dyno", help="deterministic dynamometer stops of the load cases")
+    p.add_argument("--case", help="one load case, e.g. V0100_Case1 (default: all)")
+    p.add_argument("--rig", default="dynamometer", help="rig config (default dynamometer)")
+    p.add_argument("--json", help="write results as JSON")
+    p.add_argument("--step", **step)
+    p.set_defaults(func=cmd_dyno)
+
+    p = sub.add_parser("simulate", help="one train stop")
+    p.add_argument("--vehicle", default="emu_8axle")
+    p.add_argument("--load", default="empty", help="vehicle load (empty, normal, max)")
+    p.add_argument("--mode", default="emergency", help="brake mode (emergency, service)")
+    p.add_argument("--actuation", default="EP", help="pneumatics config (EP, PN)")
+    p.add_argument("--v0", type=finite_positive("--v0"), required=True, help="initial speed in km/h")
+    p.add_argument(
+        "--command-time", type=finite_non_negative("--command-time"), default=1.0, help="brake command time in s (default 1)"
+    )
+    p.add_argument("--setup", default="ds", help="scatter set-up (default ds)")
+    p.add_argument("--seed", type=non_negative_int("--seed"), default=0)
+    p.add_argument("--json", help="write results as JSON")
+    p.add_argument("--step", **step)
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("mcs", help="Monte-Carlo campaign")
+    p.add_argument("--campaign", choices=["dyno", "field"], required=True)
+    p.add_argument("--setup", default="mcs-75-25", help="scatter set-up: ds, mcs-100, mcs-75-25, shared")
+    p.add_argument("--seed", type=non_negative_int("--seed"), default=0)
+    p.add_argument("--json", help="write the summary as JSON")
+    p.add_argument("--csv", help="write every simulated application as CSV")
+    p.add_argument("--figures", help="folder for PNG figures")
+    p.add_argument("--workers", type=positive_int("--workers"), default=2, help="worker processes (default 2)")
+    p.add_argument("--step", **step)
+    p.set_defaults(func=cmd_mcs)
+
+    p = sub.add_parser("trends", help="recompute the paper's trends")
+    p.add_argument("--seed", type=non_negative_int("--seed"), default=2022)
+    p.add_argument("--applications", type=positive_int("--applications"), default=400, help="train stops per set-up")
+    p.add_argument("--workers", type=positive_int("--workers"), default=2)
+    p.add_argument("--json", help="write the trends as JSON")
+    p.add_argument("--step", **step)
+    p.set_defaults(func=cmd_trends)

@@ -1,0 +1,316 @@
+"""The schema of every config kind: what a YAML file under ``configs/`` may hold.
+
+One pydantic model per kind of file (:class:`FrictionMaterial`, :class:`DiscThermal`,
+:class:`Pneumatics`, :class:`Dynamometer`, :class:`Vehicle`, :class:`ScatterSetup`,
+:class:`FieldCampaign`, :class:`DynoCampaign`, :class:`EffectSet`) and their parts. Units are part
+of every field name. Reading files and finding them on the search path is
+:mod:`brakegym.config.library`'s job.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class ConfigError(ValueError):
+    """A configuration file or value is invalid; the message names file, field and value."""
+
+
+class StrictModel(BaseModel):
+    """Base of every config model: unknown keys are refused (a typo in a field name must not fall
+    back to a default silently) and a loaded config cannot be changed."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class FrictionScatter(StrictModel):
+    """Standard deviations of paper Eq. 13: mu_0 ~ N(mu_0, sigma), a ~ N(a, sigma)."""
+
+    initial_mu_sigma: float = Field(ge=0)
+    power_coefficient_sigma_per_s: float = Field(ge=0)
+
+
+class FrictionMaterial(StrictModel):
+    """Pad material: the dynamic coefficient of friction of paper Eq. 4 (symbols in comments)."""
+
+    name: str
+    description: str = ""
+    power_coefficient_per_s: float = Field(ge=0)  # a
+    power_exponent: float = Field(gt=0)  # x
+    decay_coefficient_per_s: float = Field(ge=0)  # b
+    decay_exponent: float = Field(gt=0)  # y
+    temperature_coefficient_per_s: float = Field(ge=0)  # c
+    temperature_exponent: float = Field(gt=0)  # z
+    clamp_force_coefficient_per_s: float = Field(ge=0)  # d
+    clamp_force_exponent: float = Field(gt=0)  # r
+    reference_power_W: float = Field(gt=0)
+    reference_temperature_K: float = Field(gt=0)
+    reference_clamp_force_N: float = Field(gt=0)
+    initial_mu: float = Field(gt=0, lt=2)
+    mu_min: float = Field(gt=0)
+    mu_max: float = Field(gt=0)
+    min_sliding_speed_mps: float = Field(ge=0)
+    scatter: FrictionScatter
+
+    @model_validator(mode="after")
+    def _bounds_ordered(self) -> "FrictionMaterial":
+        if not self.mu_min < self.mu_max:
+            raise ValueError(f"mu_min ({self.mu_min}) must be below mu_max ({self.mu_max})")
+        if not self.mu_min <= self.initial_mu <= self.mu_max:
+            raise ValueError(
+                f"initial_mu ({self.initial_mu}) must lie in [mu_min, mu_max] = "
+                f"[{self.mu_min}, {self.mu_max}]"
+            )
+        return self
+
+
+class ConvectionLaw(StrictModel):
+    """h(v) = h0 + (h_ref - h0) (v_fric / v_ref)^exponent (paper Eq. 10) over an area."""
+
+    h0_W_per_m2K: float = Field(ge=0)
+    h_ref_W_per_m2K: float = Field(ge=0)
+    exponent: float = Field(gt=0)
+    area_m2: float = Field(gt=0)
+
+
+class DiscThermal(StrictModel):
+    """Two lumped heat capacities per disc (paper Eqs. 5-10, Table 3)."""
+
+    name: str
+    description: str = ""
+    friction_layer_heat_capacity_J_per_K: float = Field(gt=0)
+    disc_body_heat_capacity_J_per_K: float = Field(gt=0)
+    conductance_W_per_K: float = Field(gt=0)
+    conductance_slope_W_per_K2: float
+    conductance_reference_temperature_K: float = Field(gt=0)
+    conductance_min_W_per_K: float = Field(gt=0)
+    heat_fraction_into_disc: float = Field(gt=0, le=1)
+    reference_sliding_speed_mps: float = Field(gt=0)
+    surface: ConvectionLaw
+    ventilation: ConvectionLaw
+
+
+class Pneumatics(StrictModel):
+    """Brake-cylinder pressure response: a dead time, then a first-order lag (spec Section 4)."""
+
+    name: str
+    description: str = ""
+    dead_time_s: float = Field(ge=0)
+    time_constant_s: float = Field(gt=0)
+
+
+class LoadCase(StrictModel):
+    """One dynamometer load case of paper Table 1."""
+
+    name: str
+    initial_speed_kmh: float = Field(gt=0)
+    mass_kg: float = Field(gt=0)
+    clamp_force_kN: float = Field(gt=0)
+    applications_per_specimen: list[int]
+
+    @model_validator(mode="after")
+    def _counts_non_negative(self) -> "LoadCase":
+        for index, count in enumerate(self.applications_per_specimen):
+            if count < 0:
+                raise ValueError(
+                    f"applications_per_specimen[{index}] = {count}: must not be negative"
+                )
+        return self
+
+
+class Dynamometer(StrictModel):
+    """The dynamometer test rig: one disc unit braking a flywheel (paper Table 1, Eq. 11)."""
+
+    name: str
+    description: str = ""
+    material: str
+    disc: str
+    wheel_radius_m: float = Field(gt=0)
+    friction_radius_m: float = Field(gt=0)
+    clamp_force_time_constant_s: float = Field(gt=0)
+    ambient_temperature_C: float = Field(gt=-273.15)
+    initial_disc_temperature_C: float = Field(gt=-273.15)
+    specimens: list[str] = Field(min_length=1)
+    load_cases: list[LoadCase] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _cases_consistent(self) -> "Dynamometer":
+        seen: set[str] = set()
+        for index, case in enumerate(self.load_cases):
+            if case.name in seen:
+                raise ValueError(f"load_cases[{index}].name = {case.name!r} appears twice")
+            seen.add(case.name)
+            if len(case.applications_per_specimen) != len(self.specimens):
+                raise ValueError(
+                    f"load_cases[{index}] ({case.name}): applications_per_specimen has "
+                    f"{len(case.applications_per_specimen)} entries, but there are "
+                    f"{len(self.specimens)} specimens"
+                )
+        return self
+
+    def load_case(self, name: str) -> LoadCase:
+        for case in self.load_cases:
+            if case.name == name:
+                return case
+        known = ", ".join(c.name for c in self.load_cases)
+        raise ConfigError(f"unknown load case {name!r} of rig {self.name!r}; known: {known}")
+
+
+class VehicleLoad(StrictModel):
+    mass_per_disc_kg: float = Field(gt=0)
+
+
+class RunningResistance(StrictModel):
+    """F_R(v) = A + B v + C v^2 (paper Eq. 14), with the MCS scatter of A."""
+
+    A_N: float
+    B_N_per_mps: float
+    C_N_per_mps2: float
+    A_sigma_N: float = Field(ge=0)
+
+
+class Caliper(StrictModel):
+    """F_C = k_c max(p_c - p_0, 0) per disc unit (spec Section 4)."""
+
+    gain_N_per_bar: float = Field(gt=0)
+    threshold_bar: float = Field(ge=0)
+
+
+BrakeMode = Literal["emergency", "service"]
+
+
+class Vehicle(StrictModel):
+    """A train: discs grouped as bogies x axles x discs, single-mass longitudinal dynamics."""
+
+    name: str
+    description: str = ""
+    material: str
+    disc: str
+    bogies: int = Field(ge=1)
+    axles_per_bogie: int = Field(ge=1)
+    discs_per_axle: int = Field(ge=1)
+    wheel_radius_m: float = Field(gt=0)
+    friction_radius_m: float = Field(gt=0)
+    loads: dict[str, VehicleLoad] = Field(min_length=1)
+    running_resistance: RunningResistance
+    caliper: Caliper
+    max_cylinder_pressure_bar: float = Field(gt=0)
+    brake_pressures_bar: dict[BrakeMode, dict[str, float]]
+    ambient_temperature_C: float = Field(gt=-273.15)
+    initial_disc_temperature_C: float = Field(gt=-273.15)
+
+    @model_validator(mode="after")
+    def _pressures_consistent(self) -> "Vehicle":
+        for mode, by_load in self.brake_pressures_bar.items():
+            for load, pressure in by_load.items():
+                where = f"brake_pressures_bar.{mode}.{load}"
+                if load not in self.loads:
+                    raise ValueError(f"{where}: unknown load {load!r}; loads are {sorted(self.loads)}")
+                if not 0 <= pressure <= self.max_cylinder_pressure_bar:
+                    raise ValueError(
+                        f"{where} = {pressure}: must lie in 0..max_cylinder_pressure_bar "
+                        f"({self.max_cylinder_pressure_bar})"
+                    )
+        return self
+
+    @property
+    def n_axles(self) -> int:
+        return self.bogies * self.axles_per_bogie
+
+    @property
+    def n_discs(self) -> int:
+        return self.n_axles * self.discs_per_axle
+
+    def mass_kg(self, load: str) -> float:
+        return self.n_discs * self.load(load).mass_per_disc_kg
+
+    def load(self, name: str) -> VehicleLoad:
+        if name not in self.loads:
+            raise ConfigError(f"unknown load {name!r} of vehicle {self.name!r}; known: {sorted(self.loads)}")
+        return self.loads[name]
+
+    def brake_pressure_bar(self, mode: str, load: str) -> float:
+        if mode not in self.brake_pressures_bar:
+            raise ConfigError(
+                f"unknown brake mode {mode!r} of vehicle {self.name!r}; known: {sorted(self.brake_pressures_bar)}"
+            )
+        by_load = self.brake_pressures_bar[mode]  # type: ignore[index]
+        if load not in by_load:
+            raise ConfigError(f"vehicle {self.name!r} has no {mode} pressure for load {load!r}")
+        return by_load[load]
+
+
+class ScatterSetup(StrictModel):
+    """A Monte-Carlo set-up (spec Section 5): fractions of each sigma drawn globally per
+    application and individually per disc, and whether running resistance scatters."""
+
+    name: str
+    description: str = ""
+    global_fraction: float = Field(ge=0)
+    individual_fraction: float = Field(ge=0)
+    resistance_scatter: bool
+
+
+class FieldCampaign(StrictModel):
+    """Field campaign: a factorial of applications minus exclusions, repeated per set-up."""
+
+    name: str
+    description: str = ""
+    vehicle: str
+    repetitions: int = Field(ge=1)
+    command_time_s: float = Field(ge=0)
+    factors: dict[str, list[Any]]
+    exclude: list[dict[str, Any]] = []
+
+    @model_validator(mode="after")
+    def _factors_known(self) -> "FieldCampaign":
+        required = {"brake_mode", "load", "pad_set", "actuation", "initial_speed_kmh"}
+        missing = required - set(self.factors)
+        if missing:
+            raise ValueError(f"factors: missing {sorted(missing)}")
+        unknown = set(self.factors) - required
+        if unknown:
+            raise ValueError(f"factors: unknown {sorted(unknown)}; allowed {sorted(required)}")
+        for index, rule in enumerate(self.exclude):
+            for key in rule:
+                if key not in required:
+                    raise ValueError(f"exclude[{index}]: unknown factor {key!r}")
+        return self
+
+
+class DynoCampaign(StrictModel):
+    name: str
+    description: str = ""
+    rig: str
+
+
+class EffectConfig(StrictModel):
+    """One effect of :mod:`brakegym.effects` switched on, with every parameter given. The schema
+    checks the form; the effect library checks the id, the parameter names and their bounds when
+    the set is loaded (:func:`brakegym.effects.load_effects`)."""
+
+    id: str
+    parameters: dict[str, float]
+
+
+class EffectSet(StrictModel):
+    """A set of effects that modify the nominal model (``configs/effects/``): usable in the
+    simulator through :func:`brakegym.effects.load_effects` and
+    :func:`brakegym.effects.apply_effects` (or ``replay_batch(recordings, effects)``), and in the
+    environments through their ``effects`` config field
+    (``gymnasium.make(id, config={"effects": name_or_path})``), where they are applied afresh to
+    each train's episode."""
+
+    name: str
+    description: str = ""
+    effects: list[EffectConfig]
+
+    @model_validator(mode="after")
+    def _each_effect_once(self) -> "EffectSet":
+        ids = [effect.id for effect in self.effects]
+        repeated = sorted({i for i in ids if ids.count(i) > 1})
+        if repeated:
+            raise ValueError(f"effects: {repeated} appear more than once")
+        return self

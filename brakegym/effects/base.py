@@ -1,0 +1,232 @@
+"""The base of the effect library: parameters with physical bounds, the effect class, and the
+modified model an effect set builds.
+
+An effect switches physics the nominal model leaves out on in a simulation without touching the
+simulator's core loop: through its hooks (:mod:`brakegym.simulator.hooks`), through the batch
+conditions or plant (mass, running resistance), or, for sensor effects, in the measurement model
+(:class:`SensorModel`). Parameter values are floats, or arrays with one value per application of
+the batch (so that a fit can simulate several parameter sets in one batch).
+
+An effect also says what the diagnosis (:mod:`brakegym.diagnosis`) needs to know of it: whether a
+fitted size matters physically, where in its bounds the data point a search to start, how much of
+the brake force it leaves, and which measurements would confirm it or separate it from a
+look-alike. The diagnosis hands it the :class:`Evidence` of a set of recordings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .. import config as cfg
+from ..simulator import BatchConditions, ExtraForce, FrictionModifier, Plant, PressureSource, Simulator
+
+Value = float | np.ndarray
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One parameter of an effect.
+
+    ``lower``..``upper`` are physical bounds (what a fit may explore). ``no_effect`` is the value
+    at which the effect is absent; it may lie outside the bounds (an adhesion limit is absent at
+    infinite adhesion) and is None when it depends on the vehicle (see
+    :meth:`Effect.no_effect_values`). ``synth_ranges`` are the intervals ``brakegym synth`` draws
+    from when a parameter is not given: inside the bounds, and away from the no-effect value, so
+    that a drawn effect is a real one (its smallest sizes near the detection limit).
+    ``log_grid``: the diagnosis screens the parameter at geometrically spaced points, for a
+    parameter that acts through its order of magnitude over bounds spanning decades.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    no_effect: float | None
+    synth_ranges: tuple[tuple[float, float], ...]
+    integer: bool = False
+    description: str = ""
+    log_grid: bool = False
+
+    def check(self, effect_id: str, value: Value) -> np.ndarray:
+        array = np.asarray(value, dtype=float)
+        if array.ndim > 1:
+            raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} must be a number or one value per application")
+        if np.any(np.isnan(array)):
+            raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} is not a number")
+        absent = np.full(array.shape, False) if self.no_effect is None else array == self.no_effect
+        outside = ((array < self.lower) | (array > self.upper)) & ~absent
+        if np.any(outside):
+            shown = array[outside].flat[0]
+            unit = f" {self.unit}" if self.unit else ""
+            raise ValueError(
+                f"effect {effect_id!r}: parameter {self.name!r} = {shown:g}{unit} lies outside its bounds "
+                f"{self.lower:g}..{self.upper:g}{unit}"
+            )
+        if self.integer and np.any((array != np.round(array)) & ~absent):
+            raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} must be a whole number")
+        return array
+
+    def grid(self, points: int) -> np.ndarray:
+        """``points`` values across the bounds: the midpoints of equal parts (of geometric parts
+        for a ``log_grid`` parameter), never a bound itself."""
+        midpoints = (np.arange(points) + 0.5) / points
+        if self.log_grid:
+            return self.lower * (self.upper / self.lower) ** midpoints
+        return self.lower + midpoints * (self.upper - self.lower)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What a set of recordings shows of itself, as the diagnosis tells it to the effects.
+
+    Peaks are ``inf`` where the recordings do not measure the quantity.
+    """
+
+    peak_decel_mps2: float  # the highest 99th percentile of a recording's measured deceleration
+    peak_disc_C: float  # the highest measured disc temperature
+    friction_factors: np.ndarray  # each recording's friction factor fitted with the unmodified model
+    nominal_resistance: cfg.RunningResistance  # the vehicle's running resistance and its scatter
+    peak_friction_surface_C: float = float("inf")  # the hottest friction surface of a candidate's fitted replays
+
+
+@dataclass
+class SensorModel:
+    """How the sensors see the true states (see :mod:`.measurement`)."""
+
+    speed_scale: Value = 1.0  # measured over true, speed and odometry alike (wheel diameter)
+    temperature_lag_s: Value = 0.0  # first-order lag of the disc-temperature sensor
+
+
+@dataclass
+class EffectedModel:
+    """A plant and batch with effects switched on: what to hand to :class:`Simulator`, and what
+    the measurement model needs.
+
+    ``conditions.mass_kg`` is the inertial mass (a rotating-mass effect raises it);
+    ``gravitational_mass_kg`` stays the train's mass for gravity and axle loads. ``grade`` is the
+    track's rise over run in the direction of travel, per application.
+    """
+
+    plant: Plant
+    conditions: BatchConditions
+    gravitational_mass_kg: np.ndarray
+    extra_forces: list[ExtraForce] = field(default_factory=list)
+    friction_modifiers: list[FrictionModifier] = field(default_factory=list)
+    sensors: SensorModel = field(default_factory=SensorModel)
+    grade: Value = 0.0
+
+    @property
+    def n_trains(self) -> int:
+        return self.conditions.n_trains
+
+    def simulator(self, pressure: PressureSource, step_s: float) -> Simulator:
+        """A simulator of this modified model."""
+        return Simulator(
+            self.plant,
+            self.conditions,
+            pressure,
+            step_s=step_s,
+            extra_forces=self.extra_forces,
+            friction_modifiers=self.friction_modifiers,
+        )
+
+
+class Effect:
+    """Base of the candidate effects; subclasses set ``id``, ``parameters``, :meth:`apply` and
+    :meth:`is_relevant`, and may say more to the diagnosis (the class attributes and methods
+    below)."""
+
+    id: ClassVar[str]
+    parameters: ClassVar[tuple[ParameterSpec, ...]]
+    sensor: ClassVar[bool] = False  # acts on the measurement, not on the physics
+    # Effects apply in ascending order; the adhesion limit must see every other friction factor.
+    order: ClassVar[int] = 0
+    #: What would confirm or reject the effect where it acts on too few recordings to judge it held
+    #: out: a template of ``{where}`` (those recordings) and the fitted parameters by name.
+    confirming_measurement: ClassVar[str] = "more recordings in the conditions of {where}"
+    #: What separates the effect from another (by id) that the data fit equally well; each pair is
+    #: written on one of its two classes (see :func:`brakegym.effects.separating_measurement`).
+    separating_measurements: ClassVar[Mapping[str, str]] = {}
+
+    def __init__(self, **values: Value) -> None:
+        names = [p.name for p in self.parameters]
+        unknown = sorted(set(values) - set(names))
+        if unknown:
+            raise ValueError(f"effect {self.id!r}: unknown parameter(s) {unknown}; its parameters are {names}")
+        missing = [n for n in names if n not in values]
+        if missing:
+            raise ValueError(f"effect {self.id!r}: parameter(s) {missing} not given")
+        self.values: dict[str, Value] = {}
+        for spec in self.parameters:
+            array = spec.check(self.id, values[spec.name])
+            self.values[spec.name] = float(array) if array.ndim == 0 else array
+
+    def __getitem__(self, name: str) -> Value:
+        return self.values[name]
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{k}={v!r}" for k, v in self.values.items())
+        return f"{type(self).__name__}({shown})"
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, Effect)
+            and other.id == self.id
+            and all(np.array_equal(self.values[k], other.values[k]) for k in self.values)
+        )
+
+    @classmethod
+    def spec(cls, name: str) -> ParameterSpec:
+        for spec in cls.parameters:
+            if spec.name == name:
+                return spec
+        raise KeyError(f"effect {cls.id!r} has no parameter {name!r}")
+
+    @classmethod
+    def no_effect_values(cls, vehicle: cfg.Vehicle | None = None) -> dict[str, float]:
+        """Parameter values at which the effect is absent."""
+        values = {}
+        for spec in cls.parameters:
+            if spec.no_effect is None:
+                raise ValueError(f"effect {cls.id!r}: the no-effect value of {spec.name!r} depends on the vehicle")
+            values[spec.name] = spec.no_effect
+        return values
+
+    def as_config(self) -> dict[str, Any]:
+        """The YAML/JSON form: ``{"id": ..., "parameters": {...}}`` (scalar parameters only)."""
+        return {"id": self.id, "parameters": {k: float(v) for k, v in self.values.items()}}
+
+    def apply(self, model: EffectedModel) -> None:
+        """Switch the effect on in ``model`` (in place)."""
+        raise NotImplementedError
+
+    # -- what the diagnosis needs to know -------------------------------------------------------
+    @classmethod
+    def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
+        """Whether a fitted size matters physically: larger than the base model's own uncertainty
+        (what the friction scatter, the running-resistance scatter or a sensor's tolerance could
+        explain as well)."""
+        raise NotImplementedError
+
+    @classmethod
+    def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
+        """Parameter points (values of the non-integer parameters in order) the data point at,
+        screened beside the grid for an effect whose chi^2 valley is narrower than a grid step."""
+        return []
+
+    @classmethod
+    def brake_force_share(cls, parameters: Mapping[str, float], n_discs: int) -> float:
+        """The share of the nominal brake force the effect leaves at ``parameters`` (1 for effects
+        that do not scale it uniformly)."""
+        return 1.0
+
+
+def per_train(value: Value, n_trains: int, what: str) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 1 and len(array) != n_trains:
+        raise ValueError(f"{what}: {len(array)} values for a batch of {n_trains} applications")
+    return np.broadcast_to(array, (n_trains,)).copy()

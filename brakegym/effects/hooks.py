@@ -1,0 +1,78 @@
+"""The hooks effects put into the simulator (:mod:`brakegym.simulator.hooks`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..simulator import FrictionModifier, Plant, StageContext
+from .base import Value
+
+
+@dataclass(frozen=True)
+class ConstantForce:
+    """A retarding force per train that does not change during the run (a gradient)."""
+
+    force: np.ndarray  # (B,)
+    constant: ClassVar[bool] = True  # the simulator integrates it in its compiled kernel
+
+    def force_N(self, context: StageContext) -> np.ndarray:
+        return self.force
+
+
+@dataclass(frozen=True)
+class ConstantFrictionFactor:
+    factor: Value  # scalar, (B,) or (A, k, B)
+    constant: ClassVar[bool] = True
+
+    def scale(self, context: StageContext) -> Value:
+        return self.factor
+
+
+@dataclass(frozen=True)
+class WetPadFactor:
+    """1 - loss exp(-E / E_dry), E the friction heat that has entered the disc so far."""
+
+    initial_loss: Value
+    drying_energy_J: Value
+
+    def scale(self, context: StageContext) -> np.ndarray:
+        return 1.0 - self.initial_loss * np.exp(-context.friction_heat_J / self.drying_energy_J)
+
+
+@dataclass(frozen=True)
+class FadeFactor:
+    """(1 - loss)^(max(T_fric - onset, 0) / 100 K): the share ``loss`` is lost per 100 K above
+    the onset, compounded, so the factor stays positive however hot the disc gets."""
+
+    onset_K: Value
+    log_keep_per_100K: Value  # log(1 - loss)
+
+    def scale(self, context: StageContext) -> np.ndarray:
+        excess_K = np.maximum(context.friction_temperature_K - self.onset_K, 0.0)
+        return np.exp(self.log_keep_per_100K * excess_K * 0.01)
+
+
+@dataclass(frozen=True)
+class AdhesionCap:
+    """Caps each axle's brake force at adhesion x axle load x g.
+
+    A wheel-slide protection releases the brake to keep the wheels rolling at the adhesion limit:
+    modelled as a factor on the friction force of the axle's discs (force and heat follow it; the
+    friction state of Eq. 4 is driven by the clamp force as measured). It must see the factors of
+    the other friction effects (``upstream``) to know the force it caps.
+    """
+
+    limit_N: np.ndarray  # (B,), per axle
+    upstream: tuple[FrictionModifier, ...]
+    plant: Plant
+
+    def scale(self, context: StageContext) -> np.ndarray:
+        mu = self.plant.friction.bounded(context.mu)
+        for modifier in self.upstream:
+            mu = mu * modifier.scale(context)
+        axle_force = (mu * context.clamp_force_N).sum(axis=1) * self.plant.radius_ratio  # (A, B)
+        safe = np.where(axle_force > self.limit_N, axle_force, 1.0)
+        return np.where(axle_force > self.limit_N, self.limit_N / safe, 1.0)[:, None, :]

@@ -1,0 +1,183 @@
+"""Configs made into models: the one place where a config file becomes physics.
+
+The physics (:mod:`brakegym.physics`) and the simulator (:mod:`brakegym.simulator`) know nothing of
+config files; everything that reads a material, disc, vehicle, rig, pneumatics or scatter set-up
+and builds the laws, plants and random draws from it is here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import config as cfg
+from .physics import (
+    BrakeCylinder,
+    CaliperLaw,
+    CooledSurface,
+    DiscThermalModel,
+    FrictionDraw,
+    FrictionLaw,
+    RunningResistanceLaw,
+    ScatterPartition,
+    StochasticFriction,
+    draw_friction,
+    draw_running_resistance,
+)
+from .simulator import Plant
+
+
+def friction_law(material: cfg.FrictionMaterial) -> FrictionLaw:
+    """Paper Eq. 4 with the material's parameters."""
+    return FrictionLaw(
+        power_coefficient_per_s=material.power_coefficient_per_s,
+        power_exponent=material.power_exponent,
+        decay_coefficient_per_s=material.decay_coefficient_per_s,
+        decay_exponent=material.decay_exponent,
+        temperature_coefficient_per_s=material.temperature_coefficient_per_s,
+        temperature_exponent=material.temperature_exponent,
+        clamp_force_coefficient_per_s=material.clamp_force_coefficient_per_s,
+        clamp_force_exponent=material.clamp_force_exponent,
+        reference_power_W=material.reference_power_W,
+        reference_temperature_K=material.reference_temperature_K,
+        reference_clamp_force_N=material.reference_clamp_force_N,
+        mu_min=material.mu_min,
+        mu_max=material.mu_max,
+        min_sliding_speed_mps=material.min_sliding_speed_mps,
+    )
+
+
+def _cooled_surface(law: cfg.ConvectionLaw) -> CooledSurface:
+    return CooledSurface(
+        h0_W_per_m2K=law.h0_W_per_m2K, h_ref_W_per_m2K=law.h_ref_W_per_m2K, exponent=law.exponent, area_m2=law.area_m2
+    )
+
+
+def thermal_model(disc: cfg.DiscThermal) -> DiscThermalModel:
+    """Paper Eqs. 5-10 with the disc's parameters."""
+    return DiscThermalModel(
+        friction_layer_heat_capacity_J_per_K=disc.friction_layer_heat_capacity_J_per_K,
+        disc_body_heat_capacity_J_per_K=disc.disc_body_heat_capacity_J_per_K,
+        conductance_W_per_K=disc.conductance_W_per_K,
+        conductance_slope_W_per_K2=disc.conductance_slope_W_per_K2,
+        conductance_reference_temperature_K=disc.conductance_reference_temperature_K,
+        conductance_min_W_per_K=disc.conductance_min_W_per_K,
+        heat_fraction_into_disc=disc.heat_fraction_into_disc,
+        reference_sliding_speed_mps=disc.reference_sliding_speed_mps,
+        surface=_cooled_surface(disc.surface),
+        ventilation=_cooled_surface(disc.ventilation),
+    )
+
+
+def running_resistance_law(resistance: cfg.RunningResistance) -> RunningResistanceLaw:
+    """Paper Eq. 14 with the vehicle's nominal coefficients."""
+    return RunningResistanceLaw(
+        A_N=resistance.A_N, B_N_per_mps=resistance.B_N_per_mps, C_N_per_mps2=resistance.C_N_per_mps2
+    )
+
+
+def caliper_law(caliper: cfg.Caliper) -> CaliperLaw:
+    """Spec Section 4's caliper of the vehicle."""
+    return CaliperLaw(gain_N_per_bar=caliper.gain_N_per_bar, threshold_bar=caliper.threshold_bar)
+
+
+def brake_cylinder(pneumatics: cfg.Pneumatics) -> BrakeCylinder:
+    """Spec Section 4's cylinder response of an actuation (EP, PN)."""
+    return BrakeCylinder(dead_time_s=pneumatics.dead_time_s, time_constant_s=pneumatics.time_constant_s)
+
+
+# ------------------------------------------------------------------------------------------------
+# Plants
+
+
+def dynamometer_plant(rig: cfg.Dynamometer) -> Plant:
+    """The rig: one disc unit, commanded in clamp force (N), no running resistance."""
+    material = cfg.load("materials", rig.material)
+    return Plant(
+        name=rig.name,
+        n_axles=1,
+        discs_per_axle=1,
+        wheel_radius_m=rig.wheel_radius_m,
+        friction_radius_m=rig.friction_radius_m,
+        friction=friction_law(material),
+        thermal=thermal_model(cfg.load("discs", rig.disc)),
+        caliper=CaliperLaw.identity(),
+        running_resistance=RunningResistanceLaw.none(),
+        max_command=max(case.clamp_force_kN for case in rig.load_cases) * 1e3,
+    )
+
+
+_train_plants: dict[tuple[tuple[str, ...], str], Plant] = {}
+
+
+def train_plant(vehicle: cfg.Vehicle) -> Plant:
+    """The train plant of ``vehicle``, built once per vehicle and search path (fits replay a
+    vehicle thousands of times)."""
+    key = (tuple(str(folder) for folder in cfg.search_path()), vehicle.model_dump_json())
+    if key not in _train_plants:
+        _train_plants[key] = Plant(
+            name=vehicle.name,
+            n_axles=vehicle.n_axles,
+            discs_per_axle=vehicle.discs_per_axle,
+            wheel_radius_m=vehicle.wheel_radius_m,
+            friction_radius_m=vehicle.friction_radius_m,
+            friction=friction_law(cfg.load("materials", vehicle.material)),
+            thermal=thermal_model(cfg.load("discs", vehicle.disc)),
+            caliper=caliper_law(vehicle.caliper),
+            running_resistance=running_resistance_law(vehicle.running_resistance),
+            max_command=vehicle.max_cylinder_pressure_bar,
+        )
+    return _train_plants[key]
+
+
+# ------------------------------------------------------------------------------------------------
+# Random draws
+
+
+def stochastic_friction(material: cfg.FrictionMaterial) -> StochasticFriction:
+    """Paper Eq. 13's scatter of the material."""
+    return StochasticFriction(
+        initial_mu=material.initial_mu,
+        initial_mu_sigma=material.scatter.initial_mu_sigma,
+        power_coefficient_per_s=material.power_coefficient_per_s,
+        power_coefficient_sigma_per_s=material.scatter.power_coefficient_sigma_per_s,
+        mu_min=material.mu_min,
+        mu_max=material.mu_max,
+        material=material.name,
+    )
+
+
+def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
+    """A Monte-Carlo set-up (spec Section 5) as the draws take it."""
+    return ScatterPartition(
+        global_fraction=setup.global_fraction,
+        individual_fraction=setup.individual_fraction,
+        resistance_scatter=setup.resistance_scatter,
+    )
+
+
+def draw_scatter(
+    rng: np.random.Generator, vehicle: cfg.Vehicle, setup: cfg.ScatterSetup, n_applications: int
+) -> tuple[FrictionDraw, np.ndarray]:
+    """The scatter of ``n_applications`` stops of ``vehicle`` in ``setup``: every disc's friction
+    draw (paper Eq. 13), then each application's running resistance A, in that order from ``rng``
+    (the order every campaign, environment and synthetic set uses, so that a seed means the same
+    draws everywhere)."""
+    partition = scatter_partition(setup)
+    friction = draw_friction(
+        rng,
+        stochastic_friction(cfg.load("materials", vehicle.material)),
+        partition,
+        n_applications,
+        (vehicle.n_axles, vehicle.discs_per_axle),
+    )
+    resistance = vehicle.running_resistance
+    return friction, draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, partition, n_applications)
+
+
+def nominal_draw(material: cfg.FrictionMaterial, n_applications: int, disc_shape: tuple[int, int]) -> FrictionDraw:
+    """The DS case: every disc at the nominal mu_0 and a."""
+    shape = (n_applications, *disc_shape)
+    return FrictionDraw(
+        initial_mu=np.full(shape, material.initial_mu),
+        power_coefficient_per_s=np.full(shape, material.power_coefficient_per_s),
+    )
