@@ -3,10 +3,16 @@
 - :func:`sample_statistics`: mean and standard deviation with their 95 % intervals (spec
   Section 6: Student's t for means, chi-square for standard deviations).
 - :func:`envelope`: the instantaneous mean and standard deviation over applications (paper Eq. 2).
+- :func:`lag1_autocorrelation` and :func:`effective_sample_share`: how much independent
+  information autocorrelated residuals hold (fits to time series count each sample as worth
+  ``(1 - rho) / (1 + rho)`` of an independent one).
+- :func:`gauss_newton_covariance`: the parameter covariance of a least-squares fit.
+- :func:`paired_t`: Student's t of paired differences.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -70,3 +76,51 @@ def envelope(trajectory_values: np.ndarray, moving: np.ndarray) -> tuple[np.ndar
         std = np.where(count > 1, np.nanstd(np.where(count[:, None] > 1, values, 0.0), axis=1, ddof=1), np.nan)
     mean = np.where(count > 0, mean, np.nan)
     return mean, std, count
+
+
+def lag1_autocorrelation(series: Sequence[np.ndarray], centred: bool = False) -> float:
+    """Pooled lag-1 autocorrelation of residual series: the sum over series of the products of
+    neighbouring samples (pairs within a series only) over the sum of squares; about each series'
+    mean when ``centred``, else about zero (a residual's offset then counts as correlated). Series
+    of fewer than 3 samples are left out; 0 when nothing is left."""
+    products, squares = [], []
+    for values in series:
+        if len(values) < 3:
+            continue
+        r = values - values.mean() if centred else values
+        products.append(np.sum(r[1:] * r[:-1]))
+        squares.append(np.sum(r**2))
+    denominator = float(np.sum(squares))
+    return float(np.sum(products)) / denominator if denominator > 0 else 0.0
+
+
+def effective_sample_share(rho: float) -> float:
+    """What one sample of a series with lag-1 autocorrelation ``rho`` is worth in independent
+    samples, ``(1 - rho) / (1 + rho)`` (an AR(1) series' effective sample size over its length),
+    with ``rho`` taken in [0, 0.999]: negative correlation is not counted as extra information."""
+    rho = min(max(rho, 0.0), 0.999)
+    return (1.0 - rho) / (1.0 + rho)
+
+
+def gauss_newton_covariance(weighted_jacobian: np.ndarray, singular_cutoff: float = 1e-12) -> np.ndarray:
+    """(J' J)^-1 of a Jacobian whose rows are already weighted by 1 / sigma, through its SVD, so
+    that a singular problem gives infinite variances along its null directions (singular values
+    below ``singular_cutoff`` times the largest) instead of a failed inversion."""
+    _, singular, vt = np.linalg.svd(weighted_jacobian, full_matrices=False)
+    tiny = singular <= singular[0] * singular_cutoff if singular[0] > 0 else np.ones_like(singular, bool)
+    inverse = np.where(tiny, np.inf, 1.0 / np.where(tiny, 1.0, singular) ** 2)
+    with np.errstate(invalid="ignore"):
+        covariance = (vt.T * inverse) @ vt
+    return np.where(np.isnan(covariance), np.inf, covariance)
+
+
+def paired_t(differences: np.ndarray) -> float:
+    """Student's t of the mean of paired differences: inf when they agree exactly and are
+    positive, nan with fewer than two."""
+    if len(differences) < 2:
+        return math.nan
+    spread = float(np.std(differences, ddof=1))
+    mean = float(np.mean(differences))
+    if spread == 0:
+        return math.copysign(math.inf, mean) if mean else math.nan
+    return mean / (spread / math.sqrt(len(differences)))

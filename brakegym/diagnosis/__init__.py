@@ -2,12 +2,21 @@
 model, name the missing physics from the effect library (:mod:`brakegym.effects`), fit it, and say
 how sure that is.
 
+The stages, in the order :mod:`.pipeline` runs them:
+
 - :mod:`.locate`: noise levels, residual segments and the state axis a residual lives along;
 - :mod:`.fitting`: the unmodified model and candidate effects fitted to every recording at once;
-- :mod:`.pipeline`: screen, fit, judge and report;
+- :mod:`.weighting`: effective sample weights of autocorrelated residuals;
+- :mod:`.screening`: every effect tried on a grid, cheaply;
+- :mod:`.heldout` and :mod:`.judging`: candidates judged on recordings held out of the fit;
+- :mod:`.report`: the JSON report, its summary and the effect set of what was selected;
 - :mod:`.markdown`: the Markdown report and its figures.
+
+:mod:`.rules` holds every threshold.
 """
 
-from .pipeline import Diagnosis, diagnose, write_effect_set
+from .pipeline import Diagnoser, Diagnosis, diagnose
+from .report import write_effect_set
+from .rules import DiagnosisRules
 
-__all__ = ["Diagnosis", "diagnose", "write_effect_set"]
+__all__ = ["Diagnoser", "Diagnosis", "DiagnosisRules", "diagnose", "write_effect_set"]

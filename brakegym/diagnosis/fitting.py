@@ -6,9 +6,9 @@ The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]
 - ``v0``: each recording's initial speed as its speed sensor reads it (the true initial speed
   times a ``speed_sensor_scale`` in the fit), ``T0``: its initial disc temperature (nuisance
   parameters: an initial-state error must not pose as an effect). In sensor units the bounds
-  around the measured initial speed hold whatever the scale: in true units a scale of 0.955 put
+  around the measured initial speed hold whatever the scale; in true units a scale of 0.955 puts
   the initial speed of a 150 km/h stop 2 m/s above the measured one, beyond the bounds, and the
-  fitted scale was pulled to 0.965 with an interval that missed the truth;
+  bound pulls the fitted scale towards 1;
 - ``k``: each recording's friction factor, the friction scatter between applications (MCS: a
   global draw per application). It is held to 1 by a Gaussian prior of the scatter's size, so a
   shift shared by all recordings costs n times the prior: only a set-wide effect (a friction
@@ -19,8 +19,8 @@ The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]
 Residuals are measured minus simulated, divided by each channel's noise, on the samples while
 moving (deceleration also without the samples next to the measured stop, where traces that stop
 a sample apart leave a step-sized spike). Every simulation of a fit (the point and its finite
-differences) runs as one batch of :func:`brakegym.recordings.replay.replay_batch`: each copy of the set gets its
-own parameter values, and because recordings do not interact, perturbing one nuisance of every
+differences) runs as one batch of :func:`brakegym.recordings.replay.replay_batch`: each copy of
+the set gets its own parameter values, and because recordings do not interact, perturbing one nuisance of every
 recording in the same copy gives the whole nuisance block of the Jacobian at once.
 
 Integer parameters (``failed_units``) are not fitted continuously: each whole value is a
@@ -287,9 +287,9 @@ class FitProblem:
         iteration.
 
         A joint trust-region fit over every recording's nuisance moves them all by one step size:
-        one recording far from its start (a friction factor 20 % off) held the others back, and
-        the unmodified model stopped unconverged after 12 evaluations at 3 times its optimal
-        chi^2, so every candidate (even one at its no-effect value) looked like an improvement."""
+        one recording far from its start (a friction factor 20 % off) holds the others back, the
+        unmodified model stops unconverged well above its optimal chi^2, and every candidate (even
+        one at its no-effect value) then looks like an improvement."""
         p, n = len(free), self.n
         lower, upper = self.bounds(free)
         x = np.clip(np.asarray(x, dtype=float), lower, upper)
@@ -381,14 +381,42 @@ class FitProblem:
     def profiler(self, nuisance_jacobian: np.ndarray) -> "NuisanceProfile":
         return NuisanceProfile(self, nuisance_jacobian)
 
+    def chord_refit(
+        self,
+        effect_ids: Sequence[str],
+        fixed: dict[str, float],
+        free: Sequence[FreeParameter],
+        points: np.ndarray,
+        profile: "NuisanceProfile",
+        iterations: int,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each point (rows: effect parameters, then nuisance) with its nuisance refitted by
+        ``iterations`` chord iterations: Gauss-Newton steps with the unmodified model's nuisance
+        Jacobian (``profile``), each followed by a simulation at the moved point. Returns the
+        residuals of the last simulation after its linear nuisance step, and the moved points.
+
+        One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
+        gradient) needs a friction factor 8 % off, far outside the linear range of the samples
+        near the stop, and a single step rates such a gradient worse than no effect at all."""
+        p = len(free)
+        lower, upper = self.nuisance_bounds()
+        points = points.copy()
+        for _ in range(iterations):
+            residuals, _ = self.simulate(list(effect_ids), fixed, free, points)
+            projected = np.empty_like(residuals)
+            for j, residual in enumerate(residuals):
+                projected[j], step = profile.project(residual)
+                points[j, p:] = np.clip(points[j, p:] + step, lower, upper)
+        return projected, points
+
     def _gauss_newton_step(self, effect_ids, fixed, free, x: np.ndarray) -> np.ndarray:
         """One Gauss-Newton step on every parameter at once, kept when it lowers the SSE (then
         the nuisance refitted again).
 
         The trust-region fit crawls along directions that the data leave flat and only the
         friction-factor prior bends: a friction level against every recording's friction factor
-        (the data see only their product) stopped at 0.94 where 0.81 was concealed. The
-        Gauss-Newton step solves that near-linear direction in one go."""
+        (the data see only their product) can stop far from a level of 0.8. The Gauss-Newton
+        step solves that near-linear direction in one go."""
         lower, upper = self.bounds(free)
         residual, jac = self.jacobian(effect_ids, fixed, free, x)
         scale = np.maximum(np.linalg.norm(jac, axis=0), 1e-12)

@@ -43,6 +43,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .. import config as cfg
+from ..statistics import effective_sample_share, gauss_newton_covariance, lag1_autocorrelation
 from .cases import CaseSet
 from .parameters import IdentificationConfig, ParameterSpace, load_identification_config
 
@@ -210,13 +211,6 @@ class _Evaluator:
         return self.raw_jacobian(u) * self.scale[None, :] * self.weights[:, None]
 
 
-def _lag1_autocorrelation(residuals: Sequence[np.ndarray]) -> float:
-    """Pooled lag-1 autocorrelation of residual series (pairs within a series only)."""
-    numerator = sum(float(np.dot(r[:-1] - r.mean(), r[1:] - r.mean())) for r in residuals)
-    denominator = sum(float(np.dot(r - r.mean(), r - r.mean())) for r in residuals)
-    return numerator / denominator if denominator > 0 else 0.0
-
-
 def _channel_statistics(cases: CaseSet, raw: np.ndarray, n_parameters: int) -> tuple[list[ChannelFit], np.ndarray]:
     """Per channel: residual statistics and, per sample, the variance s_c^2 k_c to weight it by."""
     bounds = np.cumsum([0] + [len(s.values) for s in cases.series])
@@ -232,8 +226,8 @@ def _channel_statistics(cases: CaseSet, raw: np.ndarray, n_parameters: int) -> t
         # The p fitted parameters use up degrees of freedom; share them by sample count.
         dof = max(n - n_parameters * n / total, 1.0)
         s2 = float(np.dot(values, values)) / dof
-        rho = _lag1_autocorrelation([pieces[i] for i in index])
-        inflation = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
+        rho = lag1_autocorrelation([pieces[i] for i in index], centred=True)
+        inflation = 1.0 / effective_sample_share(rho)
         for i in index:
             variance[bounds[i] : bounds[i + 1]] = s2 * inflation
         fits.append(ChannelFit(channel, n, float(np.sqrt(np.mean(values**2))), rho, inflation, n / inflation))
@@ -323,14 +317,7 @@ def _uncertainty(
     symbols = space.symbols
     rule = settings.identifiability
     weighted = sensitivity / np.sqrt(variance)[:, None]
-    # Gauss-Newton covariance through the SVD, so that a singular problem gives infinite
-    # variances along its null directions instead of a failed inversion.
-    _, singular, vt = np.linalg.svd(weighted, full_matrices=False)
-    tiny = singular <= singular[0] * 1e-12 if singular[0] > 0 else np.ones_like(singular, bool)
-    inverse = np.where(tiny, np.inf, 1.0 / np.where(tiny, 1.0, singular) ** 2)
-    with np.errstate(invalid="ignore"):
-        covariance = (vt.T * inverse) @ vt
-        covariance = np.where(np.isnan(covariance), np.inf, covariance)
+    covariance = gauss_newton_covariance(weighted)
     standard_error = np.sqrt(np.abs(np.diag(covariance)))
     effective_dof = max(sum(c.effective_samples for c in channels) - len(theta), 1.0)
     t = stats.t.ppf(0.5 + CONFIDENCE / 2, effective_dof)

@@ -1,0 +1,179 @@
+"""Judging fitted candidates: which effect (or pair) the data select, which the data cannot tell
+apart, and which act on too few recordings to confirm.
+
+A candidate is selected when
+
+- it lowers the effective-sample BIC (chi^2 counted with the effective sample weights of
+  :mod:`.weighting`, plus ``log(n_eff)`` per parameter) by at least ``select_delta_bic``,
+- it lowers the error on recordings held out of the fit (:mod:`.heldout`) consistently over the
+  recordings it acts on: a paired t of at least ``heldout_min_t`` of each recording's share of
+  held-out error removed, over the recordings whose held-out prediction it moves by
+  ``heldout_moves_sigma`` somewhere or whose held-out error it changes by ``heldout_acts_share``,
+  at least ``heldout_min_recordings`` of them (a recording it leaves alone is no evidence either
+  way, and the gains of those it acts on differ by orders of magnitude: a thermal fade that only
+  the hottest stops reach), and
+- its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`).
+
+Of the passing singles the one with the lowest held-out error is selected, and a pair with it
+replaces it by the same rules. Another passing single is named indistinguishable from the selected
+one when its held-out error is within ``indistinguishable_heldout`` and either its BIC is within
+``similar_bic`` or the recordings do not tell the two held-out errors apart (paired t below
+``heldout_min_t``): in large data two confounders' BICs can differ by hundreds while neither
+predicts a held-out recording better. A relevant single with a BIC gain that acts on at most
+``unconfirmed_max_recordings`` recordings and removes ``unconfirmed_min_gain`` of their held-out
+error is reported unconfirmed (a t over one or two recordings is no evidence of consistency).
+The thresholds are :class:`.rules.DiagnosisRules`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..effects import EFFECTS, Evidence
+from ..statistics import paired_t
+from .fitting import FitProblem, FitResult
+from .heldout import HeldOut, held_out
+from .rules import DiagnosisRules
+from .weighting import Weighting
+
+
+@dataclass
+class Candidate:
+    """A fitted effect or pair, with what judging it found."""
+
+    effect_ids: tuple[str, ...]
+    fit: FitResult
+    chi2_eff: float
+    delta_bic: float  # against the unmodified model
+    heldout: HeldOut
+    relevant: bool = True
+    passes: bool = False  # beats the unmodified model by every rule (singles)
+    acting_gain: float = math.nan  # mean share of held-out error removed over the recordings it acts on
+    report: dict[str, Any] = field(default_factory=dict)  # what the report says of it
+
+
+@dataclass
+class Verdict:
+    """What the data select, and what they leave open."""
+
+    selected: Candidate | None
+    indistinguishable: list[list[str]]  # [selected, other] effect id pairs
+    signature_correlations: dict[str, float]  # "selected / other": how alike their corrections are
+    unconfirmed: list[Candidate]
+
+
+class Judge:
+    """Judges candidates against the unmodified model's fit ``baseline``."""
+
+    def __init__(
+        self, problem: FitProblem, weighting: Weighting, rules: DiagnosisRules, evidence: Evidence, baseline: FitResult
+    ) -> None:
+        self.problem, self.weighting, self.rules, self.evidence = problem, weighting, rules, evidence
+        self.baseline = baseline
+        self.chi2_base = weighting.chi2(baseline.residual)
+        self.log_n = math.log(max(weighting.n_eff_total, 2.0))
+        self.base_sse = held_out(problem, weighting, baseline, rules.screen_chord_iterations).sse
+
+    def candidate(self, effect_ids: tuple[str, ...], fit: FitResult) -> Candidate:
+        """A fit judged: its BIC against the unmodified model, held-out error and relevance."""
+        chi2 = self.weighting.chi2(fit.residual)
+        n_parameters = len(fit.free) + len(fit.fixed)
+        heldout = held_out(self.problem, self.weighting, fit, self.rules.screen_chord_iterations)
+        candidate = Candidate(effect_ids, fit, chi2, chi2 - self.chi2_base + n_parameters * self.log_n, heldout)
+        surface = [np.nanmax(r.states["T_fric_C"]) for r in fit.replays if "T_fric_C" in r.states]
+        evidence = dataclasses.replace(self.evidence, peak_friction_surface_C=float(max(surface)) if surface else math.inf)
+        candidate.relevant = all(
+            EFFECTS[eid].is_relevant(
+                {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, evidence
+            )
+            for eid in effect_ids
+        )
+        return candidate
+
+    def beats(
+        self, candidate: Candidate, reference_bic: float, reference_sse: np.ndarray, reference_residual: np.ndarray
+    ) -> bool:
+        """Whether ``candidate`` beats a reference (the unmodified model, or the selected single
+        for a pair) by every rule; records its held-out figures in its report."""
+        problem, rules = self.problem, self.rules
+        d = reference_sse - candidate.heldout.sse
+        gain = float(np.sum(d) / max(np.sum(reference_sse), 1e-12))
+        shares = d / np.maximum(reference_sse, 1e-12)
+        moved = np.abs(candidate.heldout.residual - reference_residual)
+        acts_on = np.array(
+            [
+                bool(np.any(moved[problem.recording_of == i] >= rules.heldout_moves_sigma))
+                or abs(shares[i]) >= rules.heldout_acts_share
+                for i in range(problem.n)
+            ]
+        )
+        t = paired_t(shares[acts_on]) if acts_on.sum() >= rules.heldout_min_recordings else math.nan
+        candidate.acting_gain = float(np.mean(shares[acts_on])) if acts_on.any() else math.nan
+        candidate.report["heldout_gain"] = round(gain, 4)
+        candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
+        candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
+        candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
+        return candidate.relevant and candidate.delta_bic - reference_bic < rules.select_delta_bic and t >= rules.heldout_min_t
+
+    def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
+        """Select among ``singles`` and ``pairs`` (see the module documentation)."""
+        base_residual = self.baseline.residual
+        for candidate in singles:
+            candidate.passes = self.beats(candidate, 0.0, self.base_sse, base_residual)
+        passing = [c for c in singles if c.passes]
+        selected = min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
+        if selected is not None:
+            for pair in pairs:
+                if selected.effect_ids[0] in pair.effect_ids and self.beats(
+                    pair, selected.delta_bic, selected.heldout.sse, selected.heldout.residual
+                ):
+                    if float(np.sum(pair.heldout.sse)) < float(np.sum(selected.heldout.sse)):
+                        selected = pair
+        else:
+            for pair in pairs:
+                self.beats(pair, 0.0, self.base_sse, base_residual)
+        indistinguishable, correlations = self._indistinguishable(selected, passing)
+        return Verdict(selected, indistinguishable, correlations, self._unconfirmed(selected, singles))
+
+    def _indistinguishable(
+        self, selected: Candidate | None, passing: Sequence[Candidate]
+    ) -> tuple[list[list[str]], dict[str, float]]:
+        rules = self.rules
+        pairs: list[list[str]] = []
+        correlations: dict[str, float] = {}
+        if selected is None or len(selected.effect_ids) != 1:
+            return pairs, correlations
+        best_sse = float(np.sum(selected.heldout.sse))
+        for other in passing:
+            if other is selected:
+                continue
+            close = float(np.sum(other.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * best_sse
+            similar_bic = abs(other.delta_bic - selected.delta_bic) < rules.similar_bic
+            difference = (other.heldout.sse - selected.heldout.sse) / np.maximum(self.base_sse, 1e-12)
+            if close and (similar_bic or not paired_t(difference) >= rules.heldout_min_t):
+                first, second = selected.effect_ids[0], other.effect_ids[0]
+                pairs.append([first, second])
+                correlations[f"{first} / {second}"] = round(
+                    self.weighting.signature_correlation(self.baseline.residual, selected.fit.residual, other.fit.residual), 3
+                )
+        return pairs, correlations
+
+    def _unconfirmed(self, selected: Candidate | None, singles: Sequence[Candidate]) -> list[Candidate]:
+        rules = self.rules
+        selected_ids = set(selected.effect_ids) if selected else set()
+        return [
+            c
+            for c in singles
+            if not c.passes
+            and c.effect_ids[0] not in selected_ids
+            and c.relevant
+            and c.delta_bic < rules.select_delta_bic
+            and 1 <= len(c.report["heldout_acts_on"]) <= rules.unconfirmed_max_recordings
+            and c.acting_gain >= rules.unconfirmed_min_gain
+        ]

@@ -1,0 +1,241 @@
+"""The diagnosis report: the JSON document ``brakegym diagnose --json`` writes (its keys are a
+public interface), its one-paragraph summary, and the effect set of the selected effects.
+
+Parameters come with 95 % intervals, the wider of the Gauss-Newton interval (effective samples)
+and the jackknife over recordings with Student's t: the Gauss-Newton covariance sees only the
+noise of the samples, not what varies between recordings and no nuisance absorbs (each
+application's running-resistance draw shifts a fitted gradient); the spread of the
+leave-one-recording-out estimates does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from scipy import stats
+
+from .. import config as cfg
+from ..effects import EFFECTS, effects_from_config, separating_measurement
+from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED
+from ..recordings.replay import compare
+from .fitting import FitProblem, FitResult
+from .judging import Candidate, Verdict
+from .screening import ScreenedPoint
+from .weighting import CHANNEL_NAMES, Weighting
+
+
+def ci95(problem: FitProblem, weighting: Weighting, fit: FitResult, leave_one_out_steps: np.ndarray) -> dict[str, list[float]]:
+    """95 % intervals of a fit's parameters (see the module documentation), inside the bounds;
+    integer parameters held fixed have their value as both ends."""
+    p = len(fit.free)
+    out: dict[str, list[float]] = {}
+    if p:
+        jac = fit.jacobian
+        w = weighting.weights
+        normal = jac.T @ (w[:, None] * jac)
+        dof = max(weighting.n_eff_total - jac.shape[1], 1.0)
+        variance = weighting.chi2(fit.residual) / dof
+        try:
+            covariance = np.linalg.pinv(normal)[:p, :p] * variance
+        except np.linalg.LinAlgError:
+            covariance = np.full((p, p), np.nan)
+        steps = leave_one_out_steps
+        n = problem.n
+        jackknife = (n - 1) / n * np.sum((steps - steps.mean(axis=0)) ** 2, axis=0) if n > 2 else np.zeros(p)
+        quantile = float(stats.t.ppf(0.975, n - 1)) if n > 2 else 1.96
+        for j, parameter in enumerate(fit.free):
+            half = max(1.96 * math.sqrt(max(covariance[j, j], 0.0)), quantile * math.sqrt(jackknife[j]))
+            value = fit.x[j]
+            out[parameter.name] = [
+                round(float(max(value - half, parameter.spec.lower)), 5),
+                round(float(min(value + half, parameter.spec.upper)), 5),
+            ]
+    for name, value in fit.fixed.items():
+        out[name] = [value, value]
+    return out
+
+
+def stop_errors(fit: FitResult) -> dict[str, float]:
+    """RMS and largest stop-distance error of a fit's replays, m."""
+    errors = [compare(r).stop_distance_error_m for r in fit.replays]
+    errors = np.array([e for e in errors if np.isfinite(e)])
+    if not errors.size:
+        return {"rms_m": float("nan"), "max_abs_m": float("nan")}
+    return {"rms_m": round(float(np.sqrt(np.mean(errors**2))), 2), "max_abs_m": round(float(np.max(np.abs(errors))), 2)}
+
+
+def candidate_entries(
+    problem: FitProblem, weighting: Weighting, baseline: FitResult, candidates: Sequence[Candidate]
+) -> list[dict[str, Any]]:
+    """Every candidate's report entry, best BIC first."""
+    base_rms = weighting.rms(baseline.residual)
+    base_stop = stop_errors(baseline)
+    entries = []
+    for candidate in sorted(candidates, key=lambda c: c.delta_bic):
+        fit = candidate.fit
+        candidate.report.update(
+            {
+                "effects": list(candidate.effect_ids),
+                "parameters": {k: round(v, 5) for k, v in fit.parameters.items()},
+                "ci95": ci95(problem, weighting, fit, candidate.heldout.steps),
+                "rms_before": base_rms,
+                "rms_after": weighting.rms(fit.residual),
+                "heldout_rms_before": base_rms,
+                "heldout_rms_after": weighting.rms(candidate.heldout.residual),
+                "delta_bic": round(candidate.delta_bic, 1),
+                "relevant_size": candidate.relevant,
+                "stop_distance_error_before": base_stop,
+                "stop_distance_error_after": stop_errors(fit),
+            }
+        )
+        entries.append(candidate.report)
+    return entries
+
+
+def build_report(
+    problem: FitProblem,
+    weighting: Weighting,
+    noise: dict[str, float],
+    mismatch: dict[str, Any],
+    unexplained: dict[str, Any] | None,
+    candidates: list[dict[str, Any]],
+    verdict: Verdict,
+    screened: dict[str, ScreenedPoint],
+    fitted: set[str],
+    chi2_unmodified: float,
+) -> dict[str, Any]:
+    """The report of a diagnosis (``brakegym diagnose --json``)."""
+    selected = verdict.selected
+    report = {
+        "recordings": problem.n,
+        "noise": {k: round(v, 5) for k, v in noise.items()},
+        "mismatch": mismatch,
+        "candidates": candidates,
+        "selected": list(selected.effect_ids) if selected else [],
+        "parameters": dict(selected.report["parameters"]) if selected else {},
+        "indistinguishable": verdict.indistinguishable,
+        "separating_measurements": {" / ".join(pair): separating_measurement(*pair) for pair in verdict.indistinguishable},
+        "signature_correlations": verdict.signature_correlations,
+        "unconfirmed": [_unconfirmed_entry(c) for c in verdict.unconfirmed],
+        "unexplained": unexplained["text"] if unexplained else None,
+        "unexplained_fit": unexplained,
+        "screening": {
+            effect_id: {"chi2_eff_profiled": round(float(screened[effect_id].chi2), 1), "fitted": effect_id in fitted}
+            for effect_id in sorted(screened, key=lambda e: screened[e].chi2)
+        },
+        "chi2_eff_unmodified": round(float(chi2_unmodified), 1),
+        "effective_sample_share": {CHANNEL_NAMES[c]: round(v, 4) for c, v in weighting.channel_shares.items()},
+        "trains_simulated": problem.simulations,
+    }
+    report["summary"] = _summary(report, selected)
+    return report
+
+
+def _unconfirmed_entry(candidate: Candidate) -> dict[str, Any]:
+    effect_id = candidate.effect_ids[0]
+    acts_on = candidate.report["heldout_acts_on"]
+    parameters = candidate.report["parameters"]
+    template = EFFECTS[effect_id].confirming_measurement
+    where = ", ".join(Path(name).name for name in acts_on)
+    return {
+        "effects": list(candidate.effect_ids),
+        "parameters": parameters,
+        "acts_on": acts_on,
+        "heldout_gain_acting": round(candidate.acting_gain, 4),
+        "delta_bic": round(candidate.delta_bic, 1),
+        "to_confirm": template.format(where=where, **parameters),
+    }
+
+
+def _unconfirmed_text(report: dict[str, Any]) -> str:
+    sentences = []
+    for entry in report["unconfirmed"]:
+        parameters = ", ".join(f"{name} = {value:g}" for name, value in entry["parameters"].items())
+        k = len(entry["acts_on"])
+        sentences.append(
+            f"{' + '.join(entry['effects'])} ({parameters}) fits the {k} recording{'s' if k > 1 else ''} it acts on "
+            f"({', '.join(Path(name).name for name in entry['acts_on'])}) much better (BIC lower by {-entry['delta_bic']:.0f}; "
+            f"{100 * entry['heldout_gain_acting']:.0f} % of their held-out error removed), but {k} of {report['recordings']} "
+            f"recordings are too few to confirm it on recordings held out of the fit, so it is not selected; "
+            f"to confirm or reject it: {entry['to_confirm']}."
+        )
+    return " ".join(sentences)
+
+
+def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
+    text = _verdict(report, selected)
+    if report["unconfirmed"]:
+        text += " Unconfirmed: " + _unconfirmed_text(report)
+    return text
+
+
+def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
+    n = report["recordings"]
+    noise = report["noise"]
+    noise_text = (
+        f"noise {noise.get(SPEED, float('nan')):.3f} m/s in speed, {noise.get(DECEL, float('nan')):.3f} m/s^2 in deceleration "
+        f"and {noise.get(DISC_TEMPERATURE, float('nan')):.2f} K in disc temperature"
+    )
+    if selected is not None:
+        parameters = ", ".join(
+            f"{name} = {value:g} (95 % {ci[0]:g}..{ci[1]:g})"
+            for name, value in selected.report["parameters"].items()
+            for ci in [selected.report["ci95"][name]]
+        )
+        before, after = selected.report["heldout_rms_before"], selected.report["heldout_rms_after"]
+        change = "; ".join(f"{c} {before[c]:g} -> {after[c]:g}" for c in before)
+        text = (
+            f"Across {n} recordings ({noise_text}) the unmodified model misses the measurements beyond noise and friction "
+            f"scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: it lowers the held-out "
+            f"residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
+        )
+        if report["indistinguishable"]:
+            pairs = "; ".join(
+                f"{a} and {b} (their corrections to the model correlate "
+                f"{report['signature_correlations'][a + ' / ' + b]:.2f}): "
+                f"{report['separating_measurements'][a + ' / ' + b]}"
+                for a, b in report["indistinguishable"]
+            )
+            text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
+        return text
+    if report["unexplained"]:
+        verdict = "is confirmed on held-out recordings" if report["unconfirmed"] else "explains it"
+        return f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library {verdict}. {report['unexplained']}"
+    if report["unconfirmed"]:
+        return f"Across {n} recordings ({noise_text}) no effect of the library is confirmed on held-out recordings."
+    return (
+        f"Across {n} recordings ({noise_text}) the unmodified model fits within noise and friction scatter once each "
+        "recording's initial speed, initial disc temperature and friction factor are fitted; no effect of the library "
+        "improves the held-out fit enough to be selected."
+    )
+
+
+def write_effect_set(report: dict[str, Any], path: str | Path, dataset_name: str) -> Path:
+    """Write the selected effects of a diagnosis report as an effect set (``configs/effects``
+    schema, validated on the way out), so that the modified model runs in the simulator:
+    ``load_effects(path)``, then ``replay_batch`` or ``apply_effects``. The 95 % intervals go
+    along as a comment. With nothing selected the set is empty: the nominal model."""
+    path = Path(path)
+    parameters = report["parameters"]
+    effects = []
+    for effect_id in report["selected"]:
+        names = [spec.name for spec in EFFECTS[effect_id].parameters]
+        effects.append({"id": effect_id, "parameters": {name: float(parameters[name]) for name in names}})
+    document = {
+        "name": path.stem,  # a config's name is its file's stem
+        "description": f"effects selected by brakegym diagnose on {dataset_name}",
+        "effects": effects,
+    }
+    effects_from_config(cfg.EffectSet.model_validate(document), str(path))  # what is written loads
+    chosen = next((c for c in report["candidates"] if c["effects"] == report["selected"]), None)
+    header = [f"# Written by brakegym diagnose from {dataset_name}: {len(report['selected'])} effect(s) selected."]
+    if chosen is not None:
+        header += [f"# {name}: 95 % interval {low:g} .. {high:g}" for name, (low, high) in chosen["ci95"].items()]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(header) + "\n" + yaml.safe_dump(document, sort_keys=False))
+    return path

@@ -1,0 +1,69 @@
+"""The diagnosis's rules: every threshold of the screening and the selection, in one place.
+
+A blind benchmark (``benchmarks/bench_diagnosis.py``) judges the diagnosis with the rules fixed
+before it runs, on seeds they were not tuned on: change a rule, and it must be judged on new seeds.
+``docs/diagnosis.md`` explains the method they serve, and its history page when each was set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class DiagnosisRules:
+    """The thresholds of :class:`~brakegym.diagnosis.pipeline.Diagnoser`."""
+
+    # -- selection ----------------------------------------------------------------------------
+    #: a candidate must lower the effective-sample BIC by at least this much (negative)
+    select_delta_bic: float = -10.0
+    #: BICs closer than this (with held-out errors within ``indistinguishable_heldout``) make two
+    #: candidates indistinguishable
+    similar_bic: float = 100.0
+    #: the paired t over recordings of the share of held-out error a candidate removes must reach
+    #: this, on the recordings it acts on
+    heldout_min_t: float = 2.0
+    #: a recording counts as acted on when the candidate moves its held-out prediction this many
+    #: noise sigmas somewhere ...
+    heldout_moves_sigma: float = 1.0
+    #: ... or changes its held-out error by this share, either way: a speed-sensor scale that the
+    #: initial speeds partly absorb moves most rows by less than a sigma, yet changes whole
+    #: recordings' errors by 10-24 %
+    heldout_acts_share: float = 0.10
+    #: the paired t needs at least this many recordings acted on
+    heldout_min_recordings: int = 2
+    #: a relevant candidate with a BIC gain that acts on at most this many recordings cannot show
+    #: a consistent held-out gain; it is reported unconfirmed (not selected) ...
+    unconfirmed_max_recordings: int = 2
+    #: ... when it removes at least this share of their held-out error on average
+    unconfirmed_min_gain: float = 0.10
+    #: two passing candidates whose held-out errors are within this share may be indistinguishable
+    indistinguishable_heldout: float = 0.10
+
+    # -- the verdict without an effect ----------------------------------------------------------
+    #: a residual that explains at least this share of its variance along one state axis (eta^2)
+    #: is described as unexplained physics when no effect is selected
+    unexplained_eta2: float = 0.10
+    #: a channel whose residual RMS is this many noise levels or more is a mismatch
+    mismatch_rms_over_noise: float = 2.0
+
+    # -- screening ------------------------------------------------------------------------------
+    #: grid points per parameter of a one-parameter effect (even: the middle of symmetric bounds,
+    #: often the no-effect value, is no start); 3 per parameter for two, 2 for three
+    grid_points_1d: int = 8
+    #: failed brake units screened: 1 .. this many
+    max_failed_units_screened: int = 4
+    #: chord iterations that refit each screened point's nuisance
+    screen_chord_iterations: int = 3
+    #: effective chi^2 a screened effect must gain over the unmodified model to be fitted in full
+    screen_min_gain: float = 1.0
+    #: screened effects fitted in full, best first
+    top_singles: int = 3
+    #: pairs are fitted among this many best singles
+    pairs_from: int = 2
+    #: iterations of a candidate's full fit
+    fit_iterations: int = 8
+
+    def grid_points(self, n_parameters: int) -> int:
+        """Screening grid points per parameter of an effect with ``n_parameters`` parameters."""
+        return {1: self.grid_points_1d, 2: 3, 3: 2}[n_parameters]

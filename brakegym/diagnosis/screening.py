@@ -1,0 +1,144 @@
+"""Screening: every effect of the library tried on a grid inside its bounds, cheaply, to find where
+a full fit should start and which effects are worth one.
+
+Each effect is screened at the points of a grid (:meth:`brakegym.effects.ParameterSpec.grid`)
+and at the points the data point at (:meth:`brakegym.effects.Effect.screening_points`), all points
+of an effect simulated in one batch, each point's nuisance (initial speed, initial disc
+temperature, friction factor of every recording) refitted by chord iterations
+(:meth:`.fitting.FitProblem.chord_refit`). The best point of each effect is then refined by one
+profiled Gauss-Newton step: a grid this coarse leaves a small effect between two points.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import EFFECTS, Evidence
+from .fitting import FitProblem, FitResult, NuisanceProfile
+from .rules import DiagnosisRules
+from .weighting import Weighting
+
+
+@dataclass
+class ScreenedPoint:
+    """An effect's best screened point: its effective chi^2 with the nuisance refitted."""
+
+    chi2: float
+    fixed: dict[str, float]  # integer parameters held at a whole value
+    theta: np.ndarray  # the free effect parameters
+    nuisance: np.ndarray  # [v0 (n), T0 (n), k (n)]
+
+
+def grid(effect_id: str, rules: DiagnosisRules) -> list[tuple[dict[str, float], np.ndarray]]:
+    """Start points inside the bounds: (fixed integer parameters, free values). An effect with an
+    integer parameter is screened at each whole value from 1 (0 is no effect)."""
+    cls = EFFECTS[effect_id]
+    integer = [s for s in cls.parameters if s.integer]
+    if integer:
+        spec = integer[0]
+        top = int(min(spec.upper, rules.max_failed_units_screened))
+        return [({spec.name: float(u)}, np.zeros(0)) for u in range(max(int(spec.lower), 1), top + 1)]
+    specs = cls.parameters
+    axes = [spec.grid(rules.grid_points(len(specs))) for spec in specs]
+    return [({}, np.array(point)) for point in itertools.product(*axes)]
+
+
+def integer_neighbours(effect_id: str, fixed: dict[str, float]) -> list[dict[str, float]]:
+    """The values one above and below a screened integer parameter, inside its bounds and the
+    grid's (from 1: 0 is no effect)."""
+    integer = [spec for spec in EFFECTS[effect_id].parameters if spec.integer]
+    if not integer:
+        return []
+    spec = integer[0]
+    value = fixed[spec.name]
+    return [{spec.name: v} for v in (value - 1.0, value + 1.0) if max(spec.lower, 1.0) <= v <= spec.upper]
+
+
+class Screening:
+    """Screens the effects against the unmodified model's fit ``baseline``."""
+
+    def __init__(
+        self,
+        problem: FitProblem,
+        weighting: Weighting,
+        rules: DiagnosisRules,
+        evidence: Evidence,
+        n_discs: int,
+        baseline: FitResult,
+    ) -> None:
+        self.problem, self.weighting, self.rules = problem, weighting, rules
+        self.evidence, self.n_discs, self.baseline = evidence, n_discs, baseline
+        self.profile: NuisanceProfile = problem.profiler(baseline.jacobian[:, : 3 * problem.n])
+
+    def starts(self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray) -> np.ndarray:
+        """The nuisance each point (rows of ``thetas``) starts from: the unmodified model's, with
+        the friction factors divided by the share of brake force the point leaves. The unmodified
+        fit's factors have absorbed a uniform loss of force (four failed units of sixteen: factors
+        near 0.75), and three chord iterations from there rate the true failed units worse than no
+        effect at all."""
+        n = self.problem.n
+        lower, upper = self.problem.nuisance_bounds()
+        names = [parameter.name for parameter in self.problem.free_parameters([effect_id], fixed)]
+        starts = np.tile(self.baseline.x, (len(thetas), 1))
+        for j, theta in enumerate(thetas):
+            parameters = {**dict(zip(names, theta)), **fixed}
+            starts[j, 2 * n :] /= EFFECTS[effect_id].brake_force_share(parameters, self.n_discs)
+        return np.clip(starts, lower, upper)
+
+    def screen(
+        self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray, nuisances: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Profiled effective chi^2 of each point (rows of ``thetas``) and its refitted nuisance."""
+        free = self.problem.free_parameters([effect_id], fixed)
+        projected, points = self.problem.chord_refit(
+            [effect_id], fixed, free, np.concatenate([thetas, nuisances], axis=1), self.profile,
+            self.rules.screen_chord_iterations,
+        )  # fmt: skip
+        return np.array([self.weighting.chi2(residual) for residual in projected]), points[:, len(free) :]
+
+    def run(self) -> dict[str, ScreenedPoint]:
+        """Every effect's best point, refined; in the library's order."""
+        best: dict[str, ScreenedPoint] = {}
+        evidence = self.evidence
+        for effect_id in EFFECTS:
+            by_fixed: dict[tuple, list[np.ndarray]] = {}
+            for fixed, theta in grid(effect_id, self.rules):
+                by_fixed.setdefault(tuple(sorted(fixed.items())), []).append(theta)
+            extra = EFFECTS[effect_id].screening_points(evidence)
+            if extra:
+                by_fixed.setdefault((), []).extend(extra)
+            for fixed_items, thetas in by_fixed.items():
+                fixed = dict(fixed_items)
+                points = np.array(thetas)
+                chi2s, nuisances = self.screen(effect_id, fixed, points, self.starts(effect_id, fixed, points))
+                for theta, chi2, nuisance in zip(points, chi2s, nuisances):
+                    if effect_id not in best or chi2 < best[effect_id].chi2:
+                        best[effect_id] = ScreenedPoint(chi2, fixed, theta, nuisance)
+        for effect_id, point in best.items():
+            refined = self._refined(effect_id, point)
+            if refined is not None:
+                best[effect_id] = refined
+        return best
+
+    def _refined(self, effect_id: str, point: ScreenedPoint) -> ScreenedPoint | None:
+        """One profiled Gauss-Newton step from ``point``, kept where it lowers the chi^2."""
+        problem = self.problem
+        free = problem.free_parameters([effect_id], point.fixed)
+        if not free:
+            return None
+        sqrt_weights = np.sqrt(self.weighting.weights)
+        base_residual, jac = problem.jacobian(
+            [effect_id], point.fixed, free, np.concatenate([point.theta, point.nuisance]), nuisance_too=False
+        )
+        projected, _ = self.profile.project(base_residual)
+        columns = self.profile.project_columns(jac[:, : len(free)]) * sqrt_weights[:, None]
+        step, *_ = np.linalg.lstsq(columns, -projected * sqrt_weights, rcond=None)
+        lower, upper = problem.bounds(free)
+        refined = np.clip(point.theta + step, lower[: len(free)], upper[: len(free)])
+        chi2, nuisance = self.screen(effect_id, point.fixed, refined[None], point.nuisance[None])
+        if chi2[0] < point.chi2:
+            return ScreenedPoint(float(chi2[0]), point.fixed, refined, nuisance[0])
+        return None
