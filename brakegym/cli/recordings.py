@@ -109,9 +109,9 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
-    from ..diagnosis.pipeline import Diagnoser
-
     dataset = read_recordings(args.dataset_dir, args.skip_bad_recordings, args.command)
+    from ..diagnosis.pipeline import Diagnoser  # after reading: a bad folder is refused at once
+
     result = Diagnoser(dataset.recordings, top_singles=args.top_singles, pairs_from=args.pairs_from).run()
     report = result.report
     write_json(args.json, {**report, LEFT_OUT_KEY: recordings_left_out(dataset)})

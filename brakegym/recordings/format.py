@@ -518,7 +518,7 @@ def _header_problems(file: str, header: list[str], vehicle: cfg.Vehicle | None) 
 
 
 # Cells of a column that could not be read as numbers: their rows (0-based) and their text.
-Unparsed = dict[str, tuple[np.ndarray, list[str]]]
+_UnparsedCells = dict[str, tuple[np.ndarray, list[str]]]
 
 
 class _ValueRules:
@@ -529,14 +529,16 @@ class _ValueRules:
     blank (NaN) for the other rules, so one bad cell is reported once.
     """
 
-    def __init__(self, file: str, data: pd.DataFrame, header: list[str], lines: np.ndarray, unparsed: Unparsed) -> None:
+    def __init__(
+        self, file: str, data: pd.DataFrame, header: list[str], lines: np.ndarray, unparsed: _UnparsedCells
+    ) -> None:
         self.file = file
         self.lines = lines
         self.problems: list[RecordingProblem] = []
         self.values: dict[str, np.ndarray] = {}
         self.reported: dict[str, np.ndarray] = {}
         self.pressure_columns = [c for c in header if _PRESSURE_COLUMN.match(c)]
-        for column in (*REQUIRED_COLUMNS, *OPTIONAL_CHANNELS, *self.pressure_columns):
+        for column in (*REQUIRED_COLUMNS, *self.pressure_columns, *OPTIONAL_CHANNELS):
             if column in data.columns and header.count(column) == 1:
                 self._take_numbers(column, data[column], unparsed.get(column))
 
@@ -647,7 +649,7 @@ def _sample_problems(
     metadata: RecordingMetadata | None,
     lines: np.ndarray,
     header: list[str] | None = None,
-    unparsed: Unparsed | None = None,
+    unparsed: _UnparsedCells | None = None,
 ) -> list[RecordingProblem]:
     """Every rule of the spec the samples break. ``lines`` are the CSV lines of the rows;
     ``header`` the columns as read (default: the frame's); ``unparsed`` the cells that were not
@@ -732,11 +734,11 @@ def _read_cells(path: Path) -> tuple[_Cells | None, list[RecordingProblem]]:
     return cells, problems
 
 
-def _build_frame(cells: _Cells, numeric: set[str]) -> tuple[pd.DataFrame, Unparsed]:
+def _build_frame(cells: _Cells, numeric: set[str]) -> tuple[pd.DataFrame, _UnparsedCells]:
     """The rows as a DataFrame (a duplicated column once, its first occurrence), and the cells of
     the ``numeric`` columns that are not numbers (NaN in the frame)."""
     columns: dict[str, Any] = {}
-    unparsed: Unparsed = {}
+    unparsed: _UnparsedCells = {}
     for index, name in enumerate(cells.header):
         if name in columns:
             continue
