@@ -1,7 +1,7 @@
 """``brakegym identify``: fit model parameters to measurements.
 
     brakegym identify parameters --dyno-curves F.csv [--parameters friction] [--json F]
-    brakegym identify parameters --recordings DIR --parameters a,c,C_fric [--json F]
+    brakegym identify parameters --recordings DIR --parameters a,c,C_fric [--skip-bad-recordings] [--json F]
     brakegym identify scatter --dyno-csv F.csv [--field-csv F.csv] [--json F]
 
 Errors in arguments, configs or data files end with a message and exit status 2 (raised as
@@ -17,6 +17,13 @@ import pandas as pd
 
 from .. import config as cfg
 from .common import finite_positive, fraction, write_json
+from .recordings import (
+    LEFT_OUT_KEY,
+    SKIP_BAD_RECORDINGS,
+    add_skip_bad_recordings_option,
+    read_recordings,
+    recordings_left_out,
+)
 
 
 def _split(text: str) -> float | None:
@@ -42,26 +49,33 @@ def cmd_parameters(args: argparse.Namespace) -> int:
     settings = load_identification_config(args.config)
     names = [n.strip() for n in args.parameters.split(",") if n.strip()]
     settings.resolve(names)  # unknown names fail before any simulation
+    dataset = None
     if args.dyno_curves:
+        if args.skip_bad_recordings:
+            raise ValueError(f"{SKIP_BAD_RECORDINGS} applies to --recordings; dyno curves are read whole or refused")
         rig = cfg.load("rigs", args.rig)
         cases = read_dyno_curves(args.dyno_curves, rig, args.step or DEFAULT_STEP_S)
         material_name, disc_name = rig.material, rig.disc
     else:
-        from ..recordings import read_dataset
-
         folder = Path(args.recordings)
         if not folder.is_dir():
             raise ValueError(f"--recordings {folder}: not a folder")
         if args.step is not None:
             raise ValueError("--step applies to --dyno-curves; recordings replay at their own step")
-        cases = recording_cases(read_dataset(folder))
+        dataset = read_recordings(folder, args.skip_bad_recordings, args.command)
+        cases = recording_cases(dataset)
         vehicle = cases.recordings[0].vehicle
         material_name, disc_name = vehicle.material, vehicle.disc
     material = cfg.load("materials", args.material or material_name)
     disc = cfg.load("discs", args.disc or disc_name)
     result = identify(cases, names, material, disc, settings)
     print(result.table())
-    payload = {"command": "identify parameters", "config": settings.name, "material": material.name, "disc": disc.name, **result.as_dict()}
+    payload = {
+        "command": "identify parameters", "config": settings.name, "material": material.name, "disc": disc.name,
+        **result.as_dict(),
+    }
+    if dataset is not None:
+        payload[LEFT_OUT_KEY] = recordings_left_out(dataset)
     write_json(args.json, payload)
     return 0
 
@@ -108,6 +122,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--disc", help="disc config to start from (default: the rig's or vehicle's)")
     p.add_argument("--step", type=finite_positive("--step"), help="integration step in s for dyno curves (default 0.2)")
     p.add_argument("--json", help="write the result as JSON")
+    add_skip_bad_recordings_option(p)
     p.set_defaults(func=cmd_parameters)
 
     p = modes.add_parser("scatter", help="sigma of mu_0 and a, and the global/individual split (Eq. 13)")

@@ -1,11 +1,66 @@
 """``brakegym synth`` and ``brakegym diagnose``: the command-line side of
-:mod:`brakegym.recordings.synth` and :mod:`brakegym.diagnosis`."""
+:mod:`brakegym.recordings.synth` and :mod:`brakegym.diagnosis`; and what every command that reads
+a folder of recordings shares: ``--skip-bad-recordings``, the list of bad recordings on stderr and
+the ``recordings_left_out`` key of its JSON output."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+import textwrap
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .common import finite_non_negative, integer_at_least, write_json
+
+if TYPE_CHECKING:
+    from ..recordings import Dataset
+
+SKIP_BAD_RECORDINGS = "--skip-bad-recordings"
+LEFT_OUT_KEY = "recordings_left_out"
+
+
+def add_skip_bad_recordings_option(parser: argparse.ArgumentParser) -> None:
+    """The option of every command that reads a folder of recordings: go on without the bad ones."""
+    parser.add_argument(
+        SKIP_BAD_RECORDINGS,
+        action="store_true",
+        help=(
+            "go on with the good recordings when some are bad: the bad ones are listed on stderr and under "
+            f"'{LEFT_OUT_KEY}' in the JSON (without it, a bad recording ends the command with status 2 and a "
+            "list of every bad recording and its problems)"
+        ),
+    )
+
+
+def read_recordings(folder: str | Path, skip_bad: bool, command: str) -> Dataset:
+    """The recordings a command works on, every bad one listed.
+
+    Without ``skip_bad`` a bad recording raises the :class:`~brakegym.recordings.DatasetError`
+    that lists them all (the command ends with status 2), with a hint at the option when some
+    recordings are good; with it, the recordings left out are printed on stderr, each with its
+    problems, and the good ones returned. A folder without a good recording raises in both modes.
+    """
+    from ..recordings import DatasetError, read_dataset
+
+    try:
+        dataset = read_dataset(folder, skip_bad=skip_bad)
+    except DatasetError as exc:
+        if skip_bad or exc.n_good == 0:
+            raise
+        hint = f"({SKIP_BAD_RECORDINGS} goes on with the {exc.n_good} good recording(s) and leaves these out)"
+        raise DatasetError(exc.folder, exc.errors, exc.n_recordings, note=hint) from None
+    if dataset.errors:
+        total = len(dataset) + len(dataset.errors)
+        print(f"brakegym {command}: left out {len(dataset.errors)} of the {total} recordings:", file=sys.stderr)
+        for error in dataset.errors:
+            print(textwrap.indent(str(error), "  "), file=sys.stderr)
+    return dataset
+
+
+def recordings_left_out(dataset: Dataset) -> list[dict[str, Any]]:
+    """What the JSON output says of the recordings left out: ``[{"file": ..., "problems": [...]}]``."""
+    return [error.as_dict() for error in dataset.errors]
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
@@ -54,13 +109,12 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    dataset = read_recordings(args.dataset_dir, args.skip_bad_recordings, args.command)
+    from ..diagnosis.pipeline import Diagnoser  # after reading: a bad folder is refused at once
 
-    from ..diagnosis import diagnose
-
-    result = diagnose(args.dataset_dir, top_singles=args.top_singles, pairs_from=args.pairs_from)
+    result = Diagnoser(dataset.recordings, top_singles=args.top_singles, pairs_from=args.pairs_from).run()
     report = result.report
-    write_json(args.json, report)
+    write_json(args.json, {**report, LEFT_OUT_KEY: recordings_left_out(dataset)})
     if args.report:
         from ..diagnosis.markdown import write_report
 
@@ -71,6 +125,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
         path = write_effect_set(report, args.effects_out, Path(args.dataset_dir).name)
         print(f"effect set: {path} (simulator: brakegym.effects.load_effects; environments: config effects={str(path)!r})")
+    if dataset.errors:
+        print(f"left out {len(dataset.errors)} bad recording(s) (listed on stderr); diagnosed {len(dataset)}")
     print(f"selected: {', '.join(report['selected']) or 'nothing'}")
     print(report["summary"])
     return 0
@@ -95,6 +151,7 @@ def _add_diagnose_command(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--top-singles", type=integer_at_least("--top-singles", 1), default=3, help="screened effects fitted in full (default 3)")
     p.add_argument("--pairs-from", type=integer_at_least("--pairs-from", 0), default=2, help="pairs among this many best singles (default 2)")
+    add_skip_bad_recordings_option(p)
     p.set_defaults(func=cmd_diagnose)
 
 

@@ -7,13 +7,25 @@ sets (``brakegym synth``). The diagnosis of recordings is :mod:`brakegym.diagnos
 - :mod:`.synth`: synthetic campaigns with concealed effects and an answer key kept apart.
 """
 
-from .format import Dataset, Recording, RecordingError, RecordingMetadata, read_dataset, read_recording, write_recording
+from .format import (
+    Dataset,
+    DatasetError,
+    Recording,
+    RecordingError,
+    RecordingMetadata,
+    RecordingProblem,
+    read_dataset,
+    read_recording,
+    write_recording,
+)
 
 __all__ = [
     "Dataset",
+    "DatasetError",
     "Recording",
     "RecordingError",
     "RecordingMetadata",
+    "RecordingProblem",
     "read_dataset",
     "read_recording",
     "write_recording",
