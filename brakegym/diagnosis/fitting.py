@@ -37,7 +37,8 @@ from scipy.optimize import least_squares
 
 from .. import config as cfg
 from ..effects import EFFECTS, FrictionLevel, ParameterSpec, SpeedSensorScale
-from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED, Recording
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
+from ..recordings.format import Recording
 from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, replay_batch, standstill_index
 
 FIT_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)

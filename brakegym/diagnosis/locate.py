@@ -21,7 +21,8 @@ from typing import Sequence
 import numpy as np
 from scipy.signal import savgol_filter
 
-from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED, Recording
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
+from ..recordings.format import Recording
 from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, standstill_index
 
 NOISE_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)

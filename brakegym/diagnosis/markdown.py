@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED  # noqa: E402
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED  # noqa: E402
 
 SHOWN_RECORDINGS = 3
 UNITS = {SPEED: "m/s", DECEL: "m/s^2", DISC_TEMPERATURE: "K"}

@@ -34,7 +34,8 @@ import numpy as np
 
 from ..effects import EFFECTS, Evidence
 from ..plants import train_plant
-from ..recordings.format import DECEL, DISC_TEMPERATURE, Recording, read_dataset
+from ..recordings.columns import DECEL, DISC_TEMPERATURE
+from ..recordings.format import Recording, read_dataset
 from .fitting import FitProblem, FitResult
 from .judging import Candidate, Judge
 from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments

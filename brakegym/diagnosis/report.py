@@ -21,7 +21,7 @@ from scipy import stats
 
 from .. import config as cfg
 from ..effects import EFFECTS, effects_from_config, separating_measurement
-from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.replay import compare
 from .fitting import FitProblem, FitResult
 from .judging import Candidate, Verdict

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..recordings.format import DECEL, DISC_TEMPERATURE, SPEED
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..statistics import effective_sample_share, lag1_autocorrelation
 from .fitting import FIT_CHANNELS, FitProblem
 

@@ -1,22 +1,15 @@
-"""The recording format (``docs/recording-format.md``): read, validate and write.
+"""The recording format (``docs/recording-format.md``): read and write recordings and folders of
+them.
 
 A recording is one brake application of one vehicle: ``<stem>.csv`` (the time series) and
-``<stem>.json`` (what was measured) in one folder; a data set is a folder of recordings.
-
-A bad recording raises one :class:`RecordingError` that lists every problem found, each as a
-:class:`RecordingProblem`: the file, the line (as a user sees it in the CSV: the header is line 1,
-the first sample line 2) or column or metadata field, and the value. A rule broken on many lines is
-one problem naming the first lines and counting the rest. A folder with bad recordings raises one
-:class:`DatasetError` listing every bad recording, or, when asked, goes on with the good ones and
-reports the bad ones in :attr:`Dataset.errors`.
-
-Some rules can only be checked once others pass, and are then not reported: a file that cannot be
-read or parsed as CSV (not text, malformed quoting) is not checked further; the values of a missing
-or duplicated column are not checked; a line with the wrong number of fields is left out of the
-value checks; the pressure-column count and the channels' metadata fields (``instrumented_disc``,
-``decel_source``) need valid metadata; a metadata field that needs the vehicle (``load``,
-``instrumented_disc``) is checked only when ``vehicle`` is valid, and "exactly one of ``load`` and
-``mass_kg``" only when every field is.
+``<stem>.json`` (what was measured, :mod:`.metadata`) in one folder; a data set is a folder of
+recordings. Reading validates (:mod:`.validation`): a bad recording raises one
+:class:`~.problems.RecordingError` that lists every problem found, each with the file, the line (as
+a user sees it in the CSV: the header is line 1, the first sample line 2) or column or metadata
+field, and the value. A folder with bad recordings raises one :class:`~.problems.DatasetError`
+listing every bad recording, or, when asked, goes on with the good ones and reports the bad ones in
+:attr:`Dataset.errors`. A file that cannot be read or parsed as CSV (not text, malformed quoting)
+is not checked further.
 
 Nothing is dropped, reordered, clipped or invented: a blank cell is a missing sample (NaN) and
 stays one, extra columns are kept as they are.
@@ -27,368 +20,22 @@ from __future__ import annotations
 import csv
 import json
 import math
-import re
-import textwrap
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from functools import cached_property, lru_cache
+from functools import cached_property
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import pandas as pd
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    PrivateAttr,
-    ValidationError,
-    ValidationInfo,
-    field_validator,
-    model_validator,
-)
 
 from .. import config as cfg
+from .columns import DISC_TEMPERATURE, OPTIONAL_CHANNELS, PRESSURE_COLUMN, REQUIRED_COLUMNS, SPEED, TIME, pressure_column
+from .metadata import RecordingMetadata, read_metadata_problems
+from .problems import DatasetError, RecordingError, RecordingProblem, problem_on_lines, refuse
+from .validation import UnparsedCells, sample_problems
 
-TIME = "time_s"
-SPEED = "speed_mps"
-DECEL = "decel_mps2"
-DISC_TEMPERATURE = "T_disc_C"
-POSITION = "position_m"
-PRESSURE_PREFIX = "p_c_bar_"
-REQUIRED_COLUMNS = (TIME, SPEED)
-OPTIONAL_CHANNELS = (DECEL, DISC_TEMPERATURE, POSITION)
-# Gauge pressure range of the format: a brake cylinder never holds more than a few bar, and a
-# reading outside 0..10 bar is a sensor or unit fault (psi, kPa), not a pressure.
-PRESSURE_RANGE_BAR = (0.0, 10.0)
-_PRESSURE_COLUMN = re.compile(re.escape(PRESSURE_PREFIX) + r"(\d+)$")
-# Plausible outdoor air for a brake test; outside it the value is a unit mistake (K, F).
-AMBIENT_RANGE_C = (-60.0, 60.0)
-ABSOLUTE_ZERO_C = -273.15
-# A rule broken on many lines names the first line and this many more; the rest are counted.
-FURTHER_LINES_SHOWN = 3
 
-
-def pressure_column(axle: int) -> str:
-    """Name of the cylinder-pressure column of 1-based ``axle``."""
-    return f"{PRESSURE_PREFIX}{axle}"
-
-
-# ------------------------------------------------------------------------------------------------
-# Problems and errors
-
-
-@dataclass(frozen=True)
-class RecordingProblem:
-    """One rule of the format a recording breaks: where, and with what value.
-
-    ``file`` is the file the problem is in (``<stem>.csv`` or ``<stem>.json``; for a recording
-    built in code, its name). ``line`` is the line of the file as a user sees it (in the CSV the
-    header is line 1) where the rule is first broken, ``column`` the CSV column, ``field`` the metadata field (dotted
-    when nested, e.g. ``vehicle.bogies``), ``value`` the offending value as read (a number, the
-    cell's text, the metadata value; None where there is none, e.g. a missing column or field);
-    each is None where it does not apply. A rule broken on several lines is one problem:
-    ``also_lines`` lists the next few of those lines and ``more_lines`` counts the rest.
-    ``description`` is what a user reads after the file path, for the first line.
-    """
-
-    file: str
-    description: str
-    line: int | None = None
-    column: str | None = None
-    field: str | None = None
-    value: Any = None
-    also_lines: tuple[int, ...] = ()
-    more_lines: int = 0
-
-    @property
-    def line_count(self) -> int:
-        """On how many lines the rule is broken (0 for a problem that is not about lines)."""
-        return 0 if self.line is None else 1 + len(self.also_lines) + self.more_lines
-
-    @property
-    def detail(self) -> str:
-        """The message without the file path: the description, then the further lines."""
-        if not self.also_lines:
-            return self.description
-        lines = ", ".join(str(line) for line in self.also_lines)
-        more = f" and {self.more_lines} more" if self.more_lines else ""
-        return f"{self.description}; also on line{'s' if self.line_count > 2 else ''} {lines}{more}"
-
-    def __str__(self) -> str:
-        return f"{self.file}: {self.detail}"
-
-    def as_dict(self) -> dict[str, Any]:
-        """The problem as JSON-ready fields; ``message`` is the text a user reads."""
-        return {
-            "file": self.file,
-            "line": self.line,
-            "column": self.column,
-            "field": self.field,
-            "value": self.value,
-            "also_lines": list(self.also_lines),
-            "more_lines": self.more_lines,
-            "message": str(self),
-        }
-
-
-def _problem_on_lines(file: str, lines: Sequence[int], description: str, **where: Any) -> RecordingProblem:
-    """One problem for a rule broken on ``lines`` (CSV lines, in order; at least one):
-    ``description`` speaks of the first, the next few are listed and the rest counted."""
-    shown = [int(line) for line in lines[: 1 + FURTHER_LINES_SHOWN]]
-    return RecordingProblem(
-        file, description, line=shown[0], also_lines=tuple(shown[1:]), more_lines=len(lines) - len(shown), **where
-    )
-
-
-class RecordingError(ValueError):
-    """A recording is invalid. The message starts with the file and names the line, column or
-    field, and the value, of each problem; ``problems`` holds them as :class:`RecordingProblem`
-    records (empty for an error raised with a message only), ``file`` the recording's file (its
-    ``<stem>.csv``, or the file the problem is in) when known."""
-
-    def __init__(self, message: str, problems: Sequence[RecordingProblem] = (), file: str | None = None) -> None:
-        super().__init__(message)
-        self.problems = tuple(problems)
-        self.file = file
-
-    @classmethod
-    def from_problems(cls, file: str | Path, problems: Sequence[RecordingProblem]) -> RecordingError:
-        """The error of recording ``file`` with ``problems`` (at least one): one problem is the
-        message; several are listed under ``<file>: N problems``, each line without the path when
-        it is ``file``'s own."""
-        file = str(file)
-        if len(problems) == 1:
-            return cls(str(problems[0]), problems, file)
-        listed = [problem.detail if problem.file == file else str(problem) for problem in problems]
-        message = f"{file}: {len(problems)} problems\n" + "\n".join(f"  {line}" for line in listed)
-        return cls(message, problems, file)
-
-    def as_dict(self) -> dict[str, Any]:
-        """``{"file": ..., "problems": [...]}`` for JSON output; an error raised with a message
-        only gives one problem holding that message."""
-        problems = self.problems or (RecordingProblem(self.file or "", str(self)),)
-        return {"file": self.file, "problems": [problem.as_dict() for problem in problems]}
-
-    def __reduce__(self):
-        return (type(self), (str(self), self.problems, self.file))
-
-
-class DatasetError(RecordingError):
-    """Recordings of a folder are bad. ``errors`` holds one :class:`RecordingError` per bad
-    recording, in stem order; ``n_recordings`` counts the folder's recordings, good and bad;
-    ``problems`` holds every problem of every bad recording. ``note`` (e.g. how to go on without
-    the bad ones) ends the message."""
-
-    def __init__(
-        self, folder: str | Path, errors: Sequence[RecordingError], n_recordings: int, note: str | None = None
-    ) -> None:
-        self.folder = Path(folder)
-        self.errors = list(errors)
-        self.n_recordings = n_recordings
-        self.note = note
-        if self.n_good == 0:
-            head = f"{folder}: none of the {n_recordings} recordings could be read"
-        else:
-            head = f"{folder}: {len(self.errors)} of the {n_recordings} recordings are bad"
-        body = "\n".join(textwrap.indent(str(error), "  ") for error in self.errors)
-        problems = [problem for error in self.errors for problem in error.problems]
-        super().__init__(f"{head}:\n{body}" + (f"\n{note}" if note else ""), problems, str(folder))
-
-    @property
-    def n_good(self) -> int:
-        """How many of the folder's recordings are good."""
-        return self.n_recordings - len(self.errors)
-
-    def __reduce__(self):
-        return (type(self), (self.folder, self.errors, self.n_recordings, self.note))
-
-
-def _refuse(file: str | Path, description: str) -> RecordingError:
-    """The error of a recording that cannot be checked further, with its one problem."""
-    return RecordingError.from_problems(file, [RecordingProblem(str(file), description)])
-
-
-# ------------------------------------------------------------------------------------------------
-# Metadata
-
-
-@lru_cache(maxsize=32)
-def _named_vehicle(search_path: tuple[str, ...], name: str) -> cfg.Vehicle:
-    # Keyed on the config search path too: a user's folder may hold a vehicle of the same name.
-    return cfg.load("vehicles", name)
-
-
-class _InlineVehicleError(ValueError):
-    """An inline vehicle object is invalid; ``items`` are pydantic's errors of it."""
-
-    def __init__(self, items: list[dict[str, Any]]) -> None:
-        self.items = items
-        problems = "; ".join(_describe_field(f"vehicle.{_location(item)}", item) for item in items)
-        super().__init__(f"inline vehicle object is invalid: {problems}")
-
-
-def _resolve_vehicle(vehicle: str | dict[str, Any]) -> cfg.Vehicle:
-    """The vehicle config a metadata ``vehicle`` names or holds; ValueError when there is none."""
-    if isinstance(vehicle, str):
-        known = cfg.available("vehicles")
-        if vehicle not in known:
-            raise ValueError(f"unknown vehicle; known: {', '.join(known)}")
-        return _named_vehicle(tuple(str(f) for f in cfg.search_path()), vehicle)
-    try:
-        return cfg.Vehicle.model_validate(vehicle)
-    except ValidationError as exc:
-        raise _InlineVehicleError(exc.errors()) from None
-
-
-def _vehicle_validated_before(info: ValidationInfo) -> cfg.Vehicle | None:
-    """The vehicle of a metadata being validated, or None when its ``vehicle`` field is invalid."""
-    vehicle = info.data.get("vehicle")
-    return None if vehicle is None else _resolve_vehicle(vehicle)
-
-
-class RecordingMetadata(BaseModel):
-    """``<stem>.json``: what was measured. Unknown keys are refused (a misspelt
-    ``initial_disc_C`` must not silently fall back to the first temperature sample).
-
-    Every invalid field is reported. ``load`` and ``instrumented_disc`` are checked against the
-    vehicle only when ``vehicle`` is valid, and "exactly one of ``load`` and ``mass_kg``" only
-    when every field is."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    vehicle: str | dict[str, Any]  # a vehicle config name, or an inline vehicle object
-    load: str | None = None  # a load of the vehicle, or give mass_kg instead
-    mass_kg: float | None = Field(default=None, gt=0)
-    brake_mode: Literal["emergency", "service"]
-    actuation: str
-    instrumented_disc: int | None = None  # 1-based disc index of T_disc_C
-    ambient_C: float = Field(ge=AMBIENT_RANGE_C[0], le=AMBIENT_RANGE_C[1])
-    initial_disc_C: float | None = Field(default=None, gt=ABSOLUTE_ZERO_C, lt=1000.0)
-    decel_source: Literal["accelerometer", "speed"] | None = None
-    pad_set: str | None = None
-    notes: str | None = None
-
-    _vehicle: cfg.Vehicle = PrivateAttr()
-
-    @field_validator("vehicle")
-    @classmethod
-    def _known_vehicle(cls, vehicle: str | dict[str, Any]) -> str | dict[str, Any]:
-        _resolve_vehicle(vehicle)
-        return vehicle
-
-    @field_validator("load")
-    @classmethod
-    def _load_of_the_vehicle(cls, load: str | None, info: ValidationInfo) -> str | None:
-        vehicle = _vehicle_validated_before(info)
-        if load is not None and vehicle is not None and load not in vehicle.loads:
-            raise ValueError(f"unknown load of vehicle {vehicle.name!r}; known: {sorted(vehicle.loads)}")
-        return load
-
-    @field_validator("actuation")
-    @classmethod
-    def _known_actuation(cls, actuation: str) -> str:
-        actuations = cfg.available("pneumatics")
-        if actuation not in actuations:
-            raise ValueError(f"unknown actuation; known: {', '.join(actuations)}")
-        return actuation
-
-    @field_validator("instrumented_disc")
-    @classmethod
-    def _disc_of_the_vehicle(cls, disc: int | None, info: ValidationInfo) -> int | None:
-        vehicle = _vehicle_validated_before(info)
-        if disc is not None and vehicle is not None and not 1 <= disc <= vehicle.n_discs:
-            raise ValueError(f"must lie in 1..{vehicle.n_discs} (the discs of vehicle {vehicle.name!r})")
-        return disc
-
-    @model_validator(mode="after")
-    def _load_or_mass(self) -> RecordingMetadata:
-        if (self.load is None) == (self.mass_kg is None):
-            raise ValueError(
-                f"give exactly one of 'load' and 'mass_kg' (load = {self.load!r}, mass_kg = {self.mass_kg!r})"
-            )
-        self._vehicle = _resolve_vehicle(self.vehicle)
-        return self
-
-    @property
-    def vehicle_config(self) -> cfg.Vehicle:
-        return self._vehicle
-
-    @property
-    def train_mass_kg(self) -> float:
-        """The train mass: ``mass_kg`` when given, else the vehicle's mass for ``load``."""
-        if self.mass_kg is not None:
-            return self.mass_kg
-        assert self.load is not None
-        return self._vehicle.mass_kg(self.load)
-
-
-def _location(item: dict[str, Any]) -> str:
-    return ".".join(str(part) for part in item["loc"])
-
-
-def _describe_field(where: str, item: dict[str, Any]) -> str:
-    """``field '<where>' = <value>: <what is wrong>`` of one pydantic error."""
-    value = "(missing)" if item["type"] == "missing" else repr(item.get("input"))
-    cause = item.get("ctx", {}).get("error") if item["type"] == "value_error" else None
-    # Our own validators' messages read better without pydantic's "Value error, " prefix.
-    return f"field '{where}' = {value}: {cause if cause is not None else item['msg']}"
-
-
-def _field_problem(file: str, where: str, item: dict[str, Any]) -> RecordingProblem:
-    value = None if item["type"] == "missing" else item.get("input")
-    return RecordingProblem(file, _describe_field(where, item), field=where, value=value)
-
-
-def _metadata_problems(file: str, error: ValidationError) -> list[RecordingProblem]:
-    """One problem per invalid field (per invalid field of an inline vehicle object)."""
-    problems = []
-    for item in error.errors():
-        where = _location(item)
-        cause = item.get("ctx", {}).get("error") if item["type"] == "value_error" else None
-        if isinstance(cause, _InlineVehicleError):
-            problems += [_field_problem(file, f"{where}.{_location(inner)}", inner) for inner in cause.items]
-        elif cause is not None and not where:
-            # A check across fields: its message names the fields and values.
-            problems.append(RecordingProblem(file, str(cause)))
-        else:
-            problems.append(_field_problem(file, where or "(top level)", item))
-    return problems
-
-
-def _read_metadata(path: Path) -> tuple[RecordingMetadata | None, list[RecordingProblem]]:
-    """The metadata of ``path``, or None and every problem found."""
-    file = str(path)
-    if not path.is_file():
-        return None, [RecordingProblem(file, "metadata file missing (every <stem>.csv needs a <stem>.json beside it)")]
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        return None, [RecordingProblem(file, f"cannot read metadata ({exc})")]
-    except json.JSONDecodeError as exc:
-        return None, [RecordingProblem(file, f"not valid JSON: {exc}", line=exc.lineno)]
-    if not isinstance(data, dict):
-        return None, [RecordingProblem(file, f"expected a JSON object of fields, got {type(data).__name__}")]
-    try:
-        return RecordingMetadata.model_validate(data), []
-    except ValidationError as exc:
-        return None, _metadata_problems(file, exc)
-    except cfg.ConfigError as exc:
-        return None, [RecordingProblem(file, str(exc))]
-
-
-def read_metadata(json_path: str | Path) -> RecordingMetadata:
-    """Parse and validate ``<stem>.json``; every invalid field is reported in one RecordingError."""
-    path = Path(json_path)
-    metadata, problems = _read_metadata(path)
-    if problems:
-        raise RecordingError.from_problems(path, problems)
-    assert metadata is not None
-    return metadata
-
-
-# ------------------------------------------------------------------------------------------------
-# The recording
 def _read_only(values: np.ndarray) -> np.ndarray:
     values = values.copy(order="K") if values.base is not None or not values.flags.owndata else values
     values.flags.writeable = False
@@ -413,7 +60,7 @@ class Recording:
     line_numbers: np.ndarray | None = field(default=None, repr=False)  # CSV line of each sample
 
     def __post_init__(self) -> None:
-        problems = _sample_problems(self.name, self.data, self.metadata, self.csv_lines)
+        problems = sample_problems(self.name, self.data, self.metadata, self.csv_lines)
         if problems:
             raise RecordingError.from_problems(self.name, problems)
 
@@ -486,184 +133,6 @@ class Recording:
         return float(temperature[0])
 
 
-
-
-# ------------------------------------------------------------------------------------------------
-# The rules on the samples
-
-
-def _header_problems(file: str, header: list[str], vehicle: cfg.Vehicle | None) -> list[RecordingProblem]:
-    """No duplicate columns, the required columns, and (when the vehicle is known) exactly one
-    pressure column per axle."""
-    problems = []
-    duplicates = sorted({c for c in header if header.count(c) > 1})
-    if duplicates:
-        problems.append(RecordingProblem(file, f"column(s) {duplicates} appear more than once in the header"))
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
-    if missing:
-        problems.append(RecordingProblem(file, f"missing required column(s) {missing}; the header has {header}"))
-    if vehicle is not None:
-        numbered = [(int(match.group(1)), c) for c in header if (match := _PRESSURE_COLUMN.match(c))]
-        found = [c for _, c in sorted(numbered)]
-        expected = [pressure_column(axle) for axle in range(1, vehicle.n_axles + 1)]
-        if found != expected:
-            problems.append(
-                RecordingProblem(
-                    file,
-                    f"pressure columns {found} do not match vehicle {vehicle.name!r} with {vehicle.n_axles} "
-                    f"axles: expected exactly {expected[0]} .. {expected[-1]}",
-                )
-            )
-    return problems
-
-
-# Cells of a column that could not be read as numbers: their rows (0-based) and their text.
-_UnparsedCells = dict[str, tuple[np.ndarray, list[str]]]
-
-
-class _ValueRules:
-    """The rules on the values of one recording's channels; ``problems`` collects each one broken.
-
-    Only the channels (time, speed, pressures, the optional channels) are checked, each when it is
-    present once in the header and holds floats. A cell already reported as not a number is a
-    blank (NaN) for the other rules, so one bad cell is reported once.
-    """
-
-    def __init__(
-        self, file: str, data: pd.DataFrame, header: list[str], lines: np.ndarray, unparsed: _UnparsedCells
-    ) -> None:
-        self.file = file
-        self.lines = lines
-        self.problems: list[RecordingProblem] = []
-        self.values: dict[str, np.ndarray] = {}
-        self.reported: dict[str, np.ndarray] = {}
-        self.pressure_columns = [c for c in header if _PRESSURE_COLUMN.match(c)]
-        for column in (*REQUIRED_COLUMNS, *self.pressure_columns, *OPTIONAL_CHANNELS):
-            if column in data.columns and header.count(column) == 1:
-                self._take_numbers(column, data[column], unparsed.get(column))
-
-    def check(self) -> list[RecordingProblem]:
-        self._time()
-        self._below(SPEED, 0.0, "speed must not be negative")
-        self._pressures()
-        self._below(DISC_TEMPERATURE, ABSOLUTE_ZERO_C, "below absolute zero", inclusive=True)
-        return self.problems
-
-    def _on_rows(self, rows: np.ndarray, column: str, description: str, value: Any = None) -> None:
-        self.problems.append(_problem_on_lines(self.file, self.lines[rows], description, column=column, value=value))
-
-    def _line(self, row: int) -> int:
-        return int(self.lines[row])
-
-    def _take_numbers(self, column: str, series: pd.Series, unparsed: tuple[np.ndarray, list[str]] | None) -> None:
-        if not pd.api.types.is_float_dtype(series.dtype):
-            description = f"column {column!r} must hold numbers (dtype {series.dtype})"
-            self.problems.append(RecordingProblem(self.file, description, column=column))
-            return
-        values = series.to_numpy(dtype=float)
-        reported = np.zeros(len(values), dtype=bool)
-        if unparsed is not None:
-            rows, cells = unparsed
-            description = f"line {self._line(rows[0])}, column {column!r}: {cells[0]!r} is not a finite number"
-            self._on_rows(rows, column, description, cells[0])
-            reported[rows] = True
-        infinite = np.flatnonzero(np.isinf(values))
-        if infinite.size:
-            first = float(values[infinite[0]])
-            description = f"line {self._line(infinite[0])}, column {column!r}: {first} is not finite"
-            self._on_rows(infinite, column, description, first)
-            reported[infinite] = True
-            values = np.where(reported, np.nan, values)
-        self.values[column] = values
-        self.reported[column] = reported
-
-    def _time(self) -> None:
-        time = self.values.get(TIME)
-        if time is None:
-            return
-        blank = np.flatnonzero(np.isnan(time) & ~self.reported[TIME])
-        if blank.size:
-            description = f"line {self._line(blank[0])}, column {TIME!r} is blank: every sample needs its time"
-            self._on_rows(blank, TIME, description)
-        present = np.flatnonzero(~np.isnan(time))
-        back = np.flatnonzero(np.diff(time[present]) <= 0)  # among the samples that have a time
-        if back.size:
-            row, before = present[back[0] + 1], present[back[0]]
-            value = float(time[row])
-            self._on_rows(
-                present[back + 1],
-                TIME,
-                f"line {self._line(row)}, column {TIME!r} = {value!r}: time must be strictly increasing "
-                f"(line {self._line(before)} has {float(time[before])!r})",
-                value,
-            )
-
-    def _below(self, column: str, limit: float, rule: str, inclusive: bool = False) -> None:
-        values = self.values.get(column)
-        if values is None:
-            return
-        bad = np.flatnonzero(values <= limit if inclusive else values < limit)
-        if bad.size:
-            value = float(values[bad[0]])
-            self._on_rows(bad, column, f"line {self._line(bad[0])}, column {column!r} = {value!r}: {rule}", value)
-
-    def _pressures(self) -> None:
-        low, high = PRESSURE_RANGE_BAR
-        for column in self.pressure_columns:
-            values = self.values.get(column)
-            if values is None:
-                continue
-            bad = np.flatnonzero((values < low) | (values > high))
-            if bad.size:
-                value = float(values[bad[0]])
-                where = f"line {self._line(bad[0])}, column {column!r} = {value!r}"
-                self._on_rows(bad, column, f"{where}: pressure outside {low:g}..{high:g} bar", value)
-            if values.size and np.all(np.isnan(values)) and not self.reported[column].any():
-                description = f"column {column!r} has no sample at all"
-                self.problems.append(RecordingProblem(self.file, description, column=column))
-
-
-def _channel_metadata_problems(file: str, header: list[str], metadata: RecordingMetadata) -> list[RecordingProblem]:
-    """A channel that needs a metadata field has it."""
-    problems = []
-    if DISC_TEMPERATURE in header and metadata.instrumented_disc is None:
-        problems.append(
-            RecordingProblem(
-                file, f"has a {DISC_TEMPERATURE!r} column but its metadata names no 'instrumented_disc'",
-                column=DISC_TEMPERATURE, field="instrumented_disc",
-            )
-        )
-    if DECEL in header and metadata.decel_source is None:
-        problems.append(
-            RecordingProblem(
-                file, f"has a {DECEL!r} column but its metadata gives no 'decel_source'",
-                column=DECEL, field="decel_source",
-            )
-        )
-    return problems
-
-
-def _sample_problems(
-    file: str,
-    data: pd.DataFrame,
-    metadata: RecordingMetadata | None,
-    lines: np.ndarray,
-    header: list[str] | None = None,
-    unparsed: _UnparsedCells | None = None,
-) -> list[RecordingProblem]:
-    """Every rule of the spec the samples break. ``lines`` are the CSV lines of the rows;
-    ``header`` the columns as read (default: the frame's); ``unparsed`` the cells that were not
-    numbers (NaN in ``data``). Without ``metadata`` (invalid), the rules that need it are left out."""
-    header = list(data.columns) if header is None else header
-    problems = _header_problems(file, header, None if metadata is None else metadata.vehicle_config)
-    if len(data) < 2:
-        problems.append(RecordingProblem(file, f"{len(data)} sample(s); a recording needs at least 2"))
-    problems += _ValueRules(file, data, header, lines, unparsed or {}).check()
-    if metadata is not None:
-        problems += _channel_metadata_problems(file, header, metadata)
-    return problems
-
-
 # ------------------------------------------------------------------------------------------------
 # Reading
 
@@ -726,19 +195,19 @@ def _read_cells(path: Path) -> tuple[_Cells | None, list[RecordingProblem]]:
             return None, [RecordingProblem(file, f"not a text file ({exc})")]
     problems = []
     if empty_inside:
-        problems.append(_problem_on_lines(file, empty_inside, f"line {empty_inside[0]} is empty between samples"))
+        problems.append(problem_on_lines(file, empty_inside, f"line {empty_inside[0]} is empty between samples"))
     if other_width:
         line, width = other_width[0]
         description = f"line {line} has {width} fields, the header has {len(header)}"
-        problems.append(_problem_on_lines(file, [line for line, _ in other_width], description, value=width))
+        problems.append(problem_on_lines(file, [line for line, _ in other_width], description, value=width))
     return cells, problems
 
 
-def _build_frame(cells: _Cells, numeric: set[str]) -> tuple[pd.DataFrame, _UnparsedCells]:
+def _build_frame(cells: _Cells, numeric: set[str]) -> tuple[pd.DataFrame, UnparsedCells]:
     """The rows as a DataFrame (a duplicated column once, its first occurrence), and the cells of
     the ``numeric`` columns that are not numbers (NaN in the frame)."""
     columns: dict[str, Any] = {}
-    unparsed: _UnparsedCells = {}
+    unparsed: UnparsedCells = {}
     for index, name in enumerate(cells.header):
         if name in columns:
             continue
@@ -772,17 +241,17 @@ def read_recording(csv_path: str | Path) -> Recording:
     documentation says which rules wait for others to pass)."""
     path = Path(csv_path)
     if path.suffix != ".csv":
-        raise _refuse(path, "a recording's time series is a .csv file")
+        raise refuse(path, "a recording's time series is a .csv file")
     if not path.is_file():
-        raise _refuse(path, "no such file")
+        raise refuse(path, "no such file")
     file = str(path)
-    metadata, metadata_problems = _read_metadata(path.with_suffix(".json"))
+    metadata, metadata_problems = read_metadata_problems(path.with_suffix(".json"))
     cells, problems = _read_cells(path)
     if cells is not None:
-        numeric = {*REQUIRED_COLUMNS, *OPTIONAL_CHANNELS, *(c for c in cells.header if _PRESSURE_COLUMN.match(c))}
+        numeric = {*REQUIRED_COLUMNS, *OPTIONAL_CHANNELS, *(c for c in cells.header if PRESSURE_COLUMN.match(c))}
         frame, unparsed = _build_frame(cells, numeric)
         lines = np.asarray(cells.lines, dtype=int)
-        problems += _sample_problems(file, frame, metadata, lines, cells.header, unparsed)
+        problems += sample_problems(file, frame, metadata, lines, cells.header, unparsed)
     problems += metadata_problems
     if problems:
         raise RecordingError.from_problems(file, problems)
@@ -809,7 +278,7 @@ class Dataset:
 def _read_stem(folder: Path, stem: str) -> Recording:
     csv_path = folder / f"{stem}.csv"
     if not csv_path.is_file():
-        raise _refuse(folder / f"{stem}.json", f"metadata without its time series {csv_path.name}")
+        raise refuse(folder / f"{stem}.json", f"metadata without its time series {csv_path.name}")
     return read_recording(csv_path)
 
 

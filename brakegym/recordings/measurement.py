@@ -31,7 +31,7 @@ import numpy as np
 
 from ..effects import EffectedModel
 from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
-from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED
+from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 
 
 @dataclass

@@ -43,7 +43,9 @@ from ..simulator.state import FRICTION_HEAT, MU, T_FRIC
 from ..simulator.state import POSITION as POSITION_STATE
 from ..simulator.state import SPEED as SPEED_STATE
 from ..units import ZERO_CELSIUS_K
-from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, Recording, RecordingError
+from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME
+from .format import Recording
+from .problems import RecordingError
 from .measurement import GridTrajectory, MeasurementModel
 
 CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)

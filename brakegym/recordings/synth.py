@@ -65,7 +65,9 @@ from ..physics import BrakeCylinder, RunningResistanceLaw
 from ..plants import brake_cylinder, draw_scatter, train_plant
 from ..simulator import BatchConditions, CommandedPressure
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
-from .format import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, Recording, RecordingMetadata, pressure_column, write_recording
+from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
+from .format import Recording, write_recording
+from .metadata import RecordingMetadata
 from .measurement import MeasurementModel
 from .replay import simulate_grid
 

@@ -1,0 +1,202 @@
+"""``<stem>.json``, what was measured: its schema, and every problem of a metadata file.
+
+Every invalid field is reported. ``load`` and ``instrumented_disc`` are checked against the
+vehicle only when ``vehicle`` is valid, and "exactly one of ``load`` and ``mass_kg``" only when
+every field is.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from .. import config as cfg
+from .columns import ABSOLUTE_ZERO_C, AMBIENT_RANGE_C
+from .problems import RecordingError, RecordingProblem
+
+
+@lru_cache(maxsize=32)
+def _named_vehicle(search_path: tuple[str, ...], name: str) -> cfg.Vehicle:
+    # Keyed on the config search path too: a user's folder may hold a vehicle of the same name.
+    return cfg.load("vehicles", name)
+
+
+class _InlineVehicleError(ValueError):
+    """An inline vehicle object is invalid; ``items`` are pydantic's errors of it."""
+
+    def __init__(self, items: list[dict[str, Any]]) -> None:
+        self.items = items
+        problems = "; ".join(_describe_field(f"vehicle.{_location(item)}", item) for item in items)
+        super().__init__(f"inline vehicle object is invalid: {problems}")
+
+
+def _resolve_vehicle(vehicle: str | dict[str, Any]) -> cfg.Vehicle:
+    """The vehicle config a metadata ``vehicle`` names or holds; ValueError when there is none."""
+    if isinstance(vehicle, str):
+        known = cfg.available("vehicles")
+        if vehicle not in known:
+            raise ValueError(f"unknown vehicle; known: {', '.join(known)}")
+        return _named_vehicle(tuple(str(f) for f in cfg.search_path()), vehicle)
+    try:
+        return cfg.Vehicle.model_validate(vehicle)
+    except ValidationError as exc:
+        raise _InlineVehicleError(exc.errors()) from None
+
+
+def _vehicle_validated_before(info: ValidationInfo) -> cfg.Vehicle | None:
+    """The vehicle of a metadata being validated, or None when its ``vehicle`` field is invalid."""
+    vehicle = info.data.get("vehicle")
+    return None if vehicle is None else _resolve_vehicle(vehicle)
+
+
+class RecordingMetadata(BaseModel):
+    """``<stem>.json``: what was measured. Unknown keys are refused (a misspelt
+    ``initial_disc_C`` must not silently fall back to the first temperature sample).
+
+    Every invalid field is reported. ``load`` and ``instrumented_disc`` are checked against the
+    vehicle only when ``vehicle`` is valid, and "exactly one of ``load`` and ``mass_kg``" only
+    when every field is."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    vehicle: str | dict[str, Any]  # a vehicle config name, or an inline vehicle object
+    load: str | None = None  # a load of the vehicle, or give mass_kg instead
+    mass_kg: float | None = Field(default=None, gt=0)
+    brake_mode: Literal["emergency", "service"]
+    actuation: str
+    instrumented_disc: int | None = None  # 1-based disc index of T_disc_C
+    ambient_C: float = Field(ge=AMBIENT_RANGE_C[0], le=AMBIENT_RANGE_C[1])
+    initial_disc_C: float | None = Field(default=None, gt=ABSOLUTE_ZERO_C, lt=1000.0)
+    decel_source: Literal["accelerometer", "speed"] | None = None
+    pad_set: str | None = None
+    notes: str | None = None
+
+    _vehicle: cfg.Vehicle = PrivateAttr()
+
+    @field_validator("vehicle")
+    @classmethod
+    def _known_vehicle(cls, vehicle: str | dict[str, Any]) -> str | dict[str, Any]:
+        _resolve_vehicle(vehicle)
+        return vehicle
+
+    @field_validator("load")
+    @classmethod
+    def _load_of_the_vehicle(cls, load: str | None, info: ValidationInfo) -> str | None:
+        vehicle = _vehicle_validated_before(info)
+        if load is not None and vehicle is not None and load not in vehicle.loads:
+            raise ValueError(f"unknown load of vehicle {vehicle.name!r}; known: {sorted(vehicle.loads)}")
+        return load
+
+    @field_validator("actuation")
+    @classmethod
+    def _known_actuation(cls, actuation: str) -> str:
+        actuations = cfg.available("pneumatics")
+        if actuation not in actuations:
+            raise ValueError(f"unknown actuation; known: {', '.join(actuations)}")
+        return actuation
+
+    @field_validator("instrumented_disc")
+    @classmethod
+    def _disc_of_the_vehicle(cls, disc: int | None, info: ValidationInfo) -> int | None:
+        vehicle = _vehicle_validated_before(info)
+        if disc is not None and vehicle is not None and not 1 <= disc <= vehicle.n_discs:
+            raise ValueError(f"must lie in 1..{vehicle.n_discs} (the discs of vehicle {vehicle.name!r})")
+        return disc
+
+    @model_validator(mode="after")
+    def _load_or_mass(self) -> RecordingMetadata:
+        if (self.load is None) == (self.mass_kg is None):
+            raise ValueError(
+                f"give exactly one of 'load' and 'mass_kg' (load = {self.load!r}, mass_kg = {self.mass_kg!r})"
+            )
+        self._vehicle = _resolve_vehicle(self.vehicle)
+        return self
+
+    @property
+    def vehicle_config(self) -> cfg.Vehicle:
+        return self._vehicle
+
+    @property
+    def train_mass_kg(self) -> float:
+        """The train mass: ``mass_kg`` when given, else the vehicle's mass for ``load``."""
+        if self.mass_kg is not None:
+            return self.mass_kg
+        assert self.load is not None
+        return self._vehicle.mass_kg(self.load)
+
+
+def _location(item: dict[str, Any]) -> str:
+    return ".".join(str(part) for part in item["loc"])
+
+
+def _describe_field(where: str, item: dict[str, Any]) -> str:
+    """``field '<where>' = <value>: <what is wrong>`` of one pydantic error."""
+    value = "(missing)" if item["type"] == "missing" else repr(item.get("input"))
+    cause = item.get("ctx", {}).get("error") if item["type"] == "value_error" else None
+    # Our own validators' messages read better without pydantic's "Value error, " prefix.
+    return f"field '{where}' = {value}: {cause if cause is not None else item['msg']}"
+
+
+def _field_problem(file: str, where: str, item: dict[str, Any]) -> RecordingProblem:
+    value = None if item["type"] == "missing" else item.get("input")
+    return RecordingProblem(file, _describe_field(where, item), field=where, value=value)
+
+
+def _metadata_problems(file: str, error: ValidationError) -> list[RecordingProblem]:
+    """One problem per invalid field (per invalid field of an inline vehicle object)."""
+    problems = []
+    for item in error.errors():
+        where = _location(item)
+        cause = item.get("ctx", {}).get("error") if item["type"] == "value_error" else None
+        if isinstance(cause, _InlineVehicleError):
+            problems += [_field_problem(file, f"{where}.{_location(inner)}", inner) for inner in cause.items]
+        elif cause is not None and not where:
+            # A check across fields: its message names the fields and values.
+            problems.append(RecordingProblem(file, str(cause)))
+        else:
+            problems.append(_field_problem(file, where or "(top level)", item))
+    return problems
+
+
+def read_metadata_problems(path: Path) -> tuple[RecordingMetadata | None, list[RecordingProblem]]:
+    """The metadata of ``path``, or None and every problem found."""
+    file = str(path)
+    if not path.is_file():
+        return None, [RecordingProblem(file, "metadata file missing (every <stem>.csv needs a <stem>.json beside it)")]
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        return None, [RecordingProblem(file, f"cannot read metadata ({exc})")]
+    except json.JSONDecodeError as exc:
+        return None, [RecordingProblem(file, f"not valid JSON: {exc}", line=exc.lineno)]
+    if not isinstance(data, dict):
+        return None, [RecordingProblem(file, f"expected a JSON object of fields, got {type(data).__name__}")]
+    try:
+        return RecordingMetadata.model_validate(data), []
+    except ValidationError as exc:
+        return None, _metadata_problems(file, exc)
+    except cfg.ConfigError as exc:
+        return None, [RecordingProblem(file, str(exc))]
+
+
+def read_metadata(json_path: str | Path) -> RecordingMetadata:
+    """Parse and validate ``<stem>.json``; every invalid field is reported in one RecordingError."""
+    path = Path(json_path)
+    metadata, problems = read_metadata_problems(path)
+    if problems:
+        raise RecordingError.from_problems(path, problems)
+    assert metadata is not None
+    return metadata
