@@ -53,7 +53,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        cfg.set_config_path(args.config_path)
+        cfg.set_config_path(args.config_path, "--config-path")
         return args.func(args)
     except (cfg.ConfigError, UsageError) as exc:
         print(f"brakegym {args.command}: error: {exc}", file=sys.stderr)

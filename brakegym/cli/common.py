@@ -27,40 +27,31 @@ def _number(name: str, text: str) -> float:
         raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
 
 
-def finite_positive(name: str) -> Callable[[str], float]:
-    """An argument type: a positive finite number."""
+def _finite(name: str, holds: Callable[[float], bool], requirement: str) -> Callable[[str], float]:
+    """An argument type: a finite number for which ``holds`` is true (``requirement`` says so)."""
 
     def parse(text: str) -> float:
         value = _number(name, text)
-        if not math.isfinite(value) or value <= 0:
-            raise argparse.ArgumentTypeError(f"{name} must be a positive finite number, got {text!r}")
+        if not (math.isfinite(value) and holds(value)):
+            raise argparse.ArgumentTypeError(f"{name} must be {requirement}, got {text!r}")
         return value
 
     return parse
+
+
+def finite_positive(name: str) -> Callable[[str], float]:
+    """An argument type: a positive finite number."""
+    return _finite(name, lambda value: value > 0, "a positive finite number")
 
 
 def finite_non_negative(name: str) -> Callable[[str], float]:
     """An argument type: a finite number >= 0."""
-
-    def parse(text: str) -> float:
-        value = _number(name, text)
-        if not math.isfinite(value) or value < 0:
-            raise argparse.ArgumentTypeError(f"{name} must be a non-negative finite number, got {text!r}")
-        return value
-
-    return parse
+    return _finite(name, lambda value: value >= 0, "a non-negative finite number")
 
 
 def fraction(name: str) -> Callable[[str], float]:
     """An argument type: a number in [0, 1]."""
-
-    def parse(text: str) -> float:
-        value = _number(name, text)
-        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-            raise argparse.ArgumentTypeError(f"{name} must be a number in [0, 1], got {text!r}")
-        return value
-
-    return parse
+    return _finite(name, lambda value: 0.0 <= value <= 1.0, "a number in [0, 1]")
 
 
 def integer_at_least(name: str, minimum: int) -> Callable[[str], int]:

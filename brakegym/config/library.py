@@ -78,11 +78,12 @@ def _checked_folders(folders: Iterable[str | Path], source: str) -> tuple[Path, 
     return tuple(checked)
 
 
-def set_config_path(folders: Sequence[str | Path]) -> None:
+def set_config_path(folders: Sequence[str | Path], source: str = "set_config_path") -> None:
     """Search ``folders``, in order, before ``$BRAKEGYM_CONFIG_PATH`` and the shipped configs, for
-    the rest of the process (or until set again; an empty sequence clears them)."""
+    the rest of the process (or until set again; an empty sequence clears them). A folder that
+    does not exist is refused, the message naming ``source`` (where the folders came from)."""
     global _folders_set
-    _folders_set = _checked_folders(folders, "set_config_path")
+    _folders_set = _checked_folders(folders, source)
 
 
 @contextmanager

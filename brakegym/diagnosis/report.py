@@ -23,6 +23,7 @@ from .. import config as cfg
 from ..effects import EFFECTS, effects_from_config, separating_measurement
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.replay import compare
+from ..statistics import gauss_newton_covariance
 from .fitting import FitProblem, FitResult
 from .judging import Candidate, Verdict
 from .screening import ScreenedPoint
@@ -36,12 +37,10 @@ def ci95(problem: FitProblem, weighting: Weighting, fit: FitResult, leave_one_ou
     out: dict[str, list[float]] = {}
     if p:
         jac = fit.jacobian
-        w = weighting.weights
-        normal = jac.T @ (w[:, None] * jac)
         dof = max(weighting.n_eff_total - jac.shape[1], 1.0)
         variance = weighting.chi2(fit.residual) / dof
         try:
-            covariance = np.linalg.pinv(normal)[:p, :p] * variance
+            covariance = gauss_newton_covariance(jac * np.sqrt(weighting.weights)[:, None])[:p, :p] * variance
         except np.linalg.LinAlgError:
             covariance = np.full((p, p), np.nan)
         steps = leave_one_out_steps
