@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from brakegym.agents.rl import BRAKEGYM_KEYS, OWN_SECTION, load_hyperparameters
-from brakegym.envs import tasks
+from brakegym.envs.registry import task_classes
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs" / "agents"
 ZOO_FILES = {"ppo": "ppo", "ppo-residual": "ppo", "sac": "sac"}  # file -> rl_zoo3 algorithm
@@ -19,7 +19,7 @@ ZOO_FILES = {"ppo": "ppo", "ppo-residual": "ppo", "sac": "sac"}  # file -> rl_zo
 def test_entries_are_environment_ids_and_own_keys_stay_in_their_section(name):
     entries = yaml.safe_load((CONFIGS / f"{name}.yaml").read_text())
     ids = [key for key in entries if key != OWN_SECTION]
-    assert ids and all(key in tasks() for key in ids)
+    assert ids and all(key in task_classes() for key in ids)
     for key in ids:
         assert not set(entries[key]) & set(BRAKEGYM_KEYS), key
         assert all(isinstance(value, (int, float)) for field, value in entries[key].items() if field in ("n_timesteps", "gamma"))

@@ -13,6 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from ..units import ZERO_CELSIUS_K
+
 
 class ConfigError(ValueError):
     """A configuration file or value is invalid; the message names file, field and value."""
@@ -130,8 +132,8 @@ class Dynamometer(StrictModel):
     wheel_radius_m: float = Field(gt=0)
     friction_radius_m: float = Field(gt=0)
     clamp_force_time_constant_s: float = Field(gt=0)
-    ambient_temperature_C: float = Field(gt=-273.15)
-    initial_disc_temperature_C: float = Field(gt=-273.15)
+    ambient_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
+    initial_disc_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
     specimens: list[str] = Field(min_length=1)
     load_cases: list[LoadCase] = Field(min_length=1)
 
@@ -198,8 +200,8 @@ class Vehicle(StrictModel):
     caliper: Caliper
     max_cylinder_pressure_bar: float = Field(gt=0)
     brake_pressures_bar: dict[BrakeMode, dict[str, float]]
-    ambient_temperature_C: float = Field(gt=-273.15)
-    initial_disc_temperature_C: float = Field(gt=-273.15)
+    ambient_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
+    initial_disc_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
 
     @model_validator(mode="after")
     def _pressures_consistent(self) -> "Vehicle":

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .registry import environment_config, full_env_id, register_environments, task_class, tasks
+from .registry import environment_config, full_env_id, register_environments, task_class, task_classes
 
 _LAZY = ("BrakeCore", "BrakeEnv", "BrakeVectorEnv")
 
@@ -35,5 +35,5 @@ __all__ = [
     "full_env_id",
     "register_environments",
     "task_class",
-    "tasks",
+    "task_classes",
 ]

@@ -20,7 +20,7 @@ from .task import BrakeTask
 
 
 @cache
-def tasks() -> dict[str, type[BrakeTask]]:
+def task_classes() -> dict[str, type[BrakeTask]]:
     """Every task, by its ``env_id``, in module order."""
     found: dict[str, type[BrakeTask]] = {}
     for module_info in sorted(pkgutil.iter_modules(task_package.__path__), key=lambda m: m.name):
@@ -36,7 +36,7 @@ def tasks() -> dict[str, type[BrakeTask]]:
 def task_class(task: str) -> type[BrakeTask]:
     """The task of an environment id (``brakegym/StationStop-v0`` or ``StationStop-v0``) or a
     task name (``station_stop``); unknown ones raise ``ValueError`` listing the known."""
-    known = tasks()
+    known = task_classes()
     for cls in known.values():
         if task in (cls.env_id, cls.env_id.split("/", 1)[1], cls.name):
             return cls
@@ -59,7 +59,7 @@ def register_environments() -> None:
     """Register every environment with Gymnasium, once: re-imports and reloads change nothing."""
     import gymnasium
 
-    for env_id, cls in tasks().items():
+    for env_id, cls in task_classes().items():
         if env_id not in gymnasium.registry:
             gymnasium.register(
                 id=env_id,

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from ..units import mps_to_kmh
+
 
 class Dashboard:
     def __init__(self, env: Any):
@@ -25,7 +27,7 @@ class Dashboard:
         self.rows.append(
             {
                 "time_s": info["time_s"],
-                "speed_kmh": info["speed_mps"] * 3.6,
+                "speed_kmh": mps_to_kmh(info["speed_mps"]),
                 "position_m": info["position_m"],
                 "deceleration_mps2": info["deceleration_mps2"],
                 "demand_mps2": info.get("demand_mps2", np.nan),
