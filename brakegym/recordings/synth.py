@@ -60,15 +60,15 @@ import pandas as pd
 from .. import __version__
 from .. import config as cfg
 from ..applications import CommandSchedule
-from ..effects import EFFECTS, Effect, RunningResistanceEffect, apply_effects, effect_class
+from ..effects import EFFECTS, Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
 from ..physics import BrakeCylinder, RunningResistanceLaw
 from ..plants import brake_cylinder, draw_scatter, train_plant
-from ..simulator import BatchConditions, CommandedPressure
+from ..simulator import BatchConditions, CommandedPressure, Plant
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
 from .format import Recording, write_recording
 from .metadata import RecordingMetadata
-from .measurement import MeasurementModel
+from .measurement import GridTrajectory, MeasurementModel
 from .replay import simulate_grid
 
 VEHICLE = "emu_8axle"
@@ -274,10 +274,40 @@ def synthesize(
     ``noise_scale`` multiplies every sensor noise level (0: noise-free, for checking a replay;
     larger for robustness); ``scatter_setup`` names the friction scatter set-up (``ds``: none,
     and no running-resistance scatter either)."""
-    if not (math.isfinite(noise_scale) and noise_scale >= 0):
-        raise ValueError(f"noise scale {noise_scale}: must be a non-negative finite number")
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
+    _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
+    drawn = _draw_set(n_recordings, seed, effects, random_effects, base_offset, scatter_setup)
+    model, grid = _simulate_truth(drawn, drawn.chosen)
+    recordings, truth_rows = [], []
+    for b, app in enumerate(drawn.applications):
+        stop = float(grid.stop_time_s[b])
+        record = _measure(
+            app, b, grid, model, drawn.cylinders[b], drawn.decel_source, stop, drawn.noise_seeds[b], drawn.vehicle,
+            noise_scale,
+        )  # fmt: skip
+        write_recording(record, out_dir)
+        recordings.append(record)
+        truth_rows.append(_truth_row(drawn, b, model, grid, stop))
+    if drawn.chosen:
+        true_channels = _sensor_channels(recordings, model, grid, drawn.decel_source)
+        for effect, entry in zip(drawn.chosen, drawn.effect_entries):
+            others = [e for e in drawn.chosen if e is not effect]
+            without = _sensor_channels(recordings, *_simulate_truth(drawn, others), drawn.decel_source)
+            entry["imprint"] = _imprint(true_channels, without, drawn.decel_source, noise_scale)
+    key = _answer_key(drawn, seed, noise_scale, truth_rows)
+    key_path.parent.mkdir(parents=True, exist_ok=True)
+    key_path.write_text(json.dumps(key, indent=2) + "\n")
+    return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
+
+
+def _check_request(
+    out_dir: Path, key_path: Path, n_recordings: int, effects: Sequence[EffectRequest], random_effects: bool,
+    noise_scale: float,
+) -> None:  # fmt: skip
+    """Refuse a set that cannot be written as asked."""
+    if not (math.isfinite(noise_scale) and noise_scale >= 0):
+        raise ValueError(f"noise scale {noise_scale}: must be a non-negative finite number")
     if n_recordings < 1:
         raise ValueError(f"--recordings {n_recordings}: need at least 1")
     if len(effects) > MAX_EFFECTS:
@@ -292,30 +322,46 @@ def synthesize(
     if out_dir.exists() and any(p.suffix in (".csv", ".json") for p in out_dir.iterdir()):
         raise ValueError(f"{out_dir} already holds recordings; write a new set into an empty folder")
 
+
+@dataclass
+class _DrawnSet:
+    """Everything a set's seed draws: the applications, their scatter, the effects and the base
+    offset, and the truth's plant and batch built from them."""
+
+    vehicle: cfg.Vehicle
+    setup: cfg.ScatterSetup
+    plant: Plant
+    chosen: list[Effect]
+    effect_entries: list[dict[str, Any]]
+    applications: list[Application]
+    decel_source: str
+    conditions: BatchConditions
+    scatter_A: np.ndarray  # each application's running-resistance draw less the nominal A
+    offset: dict[str, Any] | None
+    cylinders: list[BrakeCylinder]
+    noise_seeds: list[np.random.SeedSequence]
+
+
+def _draw_set(
+    n: int, seed: int, effects: Sequence[EffectRequest], random_effects: bool, base_offset: bool, scatter_setup: str
+) -> _DrawnSet:
+    """The draws of a set from its seed, through independent streams (campaign, scatter, effects,
+    base offset, noise)."""
     campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed = np.random.SeedSequence(seed).spawn(5)
     campaign_rng, scatter_rng, effect_rng, offset_rng = (
         np.random.default_rng(s) for s in (campaign_seed, scatter_seed, effect_seed, offset_seed)
     )
-    # One noise seed per recording and channel: sample k of a recording gets the same noise
-    # whatever the length of the recording or of the others.
-    noise_seeds = noise_seed.spawn(n_recordings)
     vehicle = cfg.load("vehicles", VEHICLE)
     material = cfg.load("materials", vehicle.material)
     setup = cfg.load("setups", scatter_setup)
     plant = train_plant(vehicle)
-
     requests = random_requests(effect_rng) if random_effects else list(effects)
     chosen, effect_entries = resolve_effects(requests, effect_rng)
-
-    applications = draw_applications(campaign_rng, vehicle, n_recordings)
+    applications = draw_applications(campaign_rng, vehicle, n)
     decel_source = "accelerometer" if campaign_rng.random() < ACCELEROMETER_PROBABILITY else "speed"
-    n = n_recordings
     draw, drawn_A = draw_scatter(scatter_rng, vehicle, setup, n)
-    scatter_A = drawn_A - vehicle.running_resistance.A_N
-
+    initial_mu, power_coefficient, resistance_A = draw.initial_mu, draw.power_coefficient_per_s, drawn_A
     offset: dict[str, Any] | None = None
-    initial_mu, power_coefficient = draw.initial_mu, draw.power_coefficient_per_s
-    resistance_A = drawn_A
     if base_offset:
         has_resistance_effect = any(isinstance(e, RunningResistanceEffect) for e in chosen)
         allowed = ["friction"] if has_resistance_effect else ["running_resistance", "friction"]
@@ -334,7 +380,6 @@ def synthesize(
         else:
             initial_mu = initial_mu + offset["initial_mu_shift"]
             power_coefficient = power_coefficient + offset["power_coefficient_shift_per_s"]
-
     disc_shape = (n, *plant.disc_shape)
     initial_K = np.array([a.initial_disc_C for a in applications]) + ZERO_CELSIUS_K
     conditions = BatchConditions(
@@ -347,56 +392,69 @@ def synthesize(
         initial_disc_temperature_K=np.broadcast_to(initial_K[:, None, None], disc_shape).copy(),
         ambient_temperature_K=np.array([a.ambient_C for a in applications]) + ZERO_CELSIUS_K,
     )
-    cylinders = [brake_cylinder(cfg.load("pneumatics", a.actuation)) for a in applications]
-    model, grid = _simulate_truth(plant, conditions, chosen, scatter_A, applications, cylinders)
+    return _DrawnSet(
+        vehicle=vehicle,
+        setup=setup,
+        plant=plant,
+        chosen=chosen,
+        effect_entries=effect_entries,
+        applications=applications,
+        decel_source=decel_source,
+        conditions=conditions,
+        scatter_A=drawn_A - vehicle.running_resistance.A_N,
+        offset=offset,
+        cylinders=[brake_cylinder(cfg.load("pneumatics", a.actuation)) for a in applications],
+        # One noise seed per recording and channel: sample k of a recording gets the same noise
+        # whatever the length of the recording or of the others.
+        noise_seeds=noise_seed.spawn(n),
+    )
 
-    recordings = []
-    truth_rows = []
-    for b, app in enumerate(applications):
-        stop = float(grid.stop_time_s[b])
-        record = _measure(app, b, grid, model, cylinders[b], decel_source, stop, noise_seeds[b], vehicle, noise_scale)
-        write_recording(record, out_dir)
-        recordings.append(record)
-        truth_rows.append(
-            {
-                "stem": app.stem,
-                "initial_speed_kmh": app.initial_speed_kmh,
-                "load": app.load,
-                "brake_mode": app.brake_mode,
-                "actuation": app.actuation,
-                "command_time_s": app.command_time_s,
-                "stop_time_s": round(stop, 4),
-                "braking_distance_m": round(float(np.interp(stop, grid.time_s, grid.position_m[:, b]) - np.interp(app.command_time_s, grid.time_s, grid.position_m[:, b])), 3),
-                "running_resistance_A_N": round(float(np.asarray(model.conditions.running_resistance_A_N)[b]), 2),
-                "mean_initial_mu": round(float(initial_mu[b].mean()), 5),
-                "mean_power_coefficient_per_s": round(float(power_coefficient[b].mean()), 6),
-                "initial_disc_C": app.initial_disc_C,
-                "ambient_C": app.ambient_C,
-                "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
-            }
-        )
 
-    if chosen:
-        true_channels = _sensor_channels(recordings, model, grid, decel_source)
-        for effect, entry in zip(chosen, effect_entries):
-            others = [e for e in chosen if e is not effect]
-            without = _sensor_channels(recordings, *_simulate_truth(plant, conditions, others, scatter_A, applications, cylinders), decel_source)
-            entry["imprint"] = _imprint(true_channels, without, decel_source, noise_scale)
+def _truth_row(drawn: _DrawnSet, b: int, model: EffectedModel, grid: GridTrajectory, stop: float) -> dict[str, Any]:
+    """What the key records of application ``b``."""
+    app = drawn.applications[b]
+    position = grid.position_m[:, b]
+    conditions = drawn.conditions
+    return {
+        "stem": app.stem,
+        "initial_speed_kmh": app.initial_speed_kmh,
+        "load": app.load,
+        "brake_mode": app.brake_mode,
+        "actuation": app.actuation,
+        "command_time_s": app.command_time_s,
+        "stop_time_s": round(stop, 4),
+        "braking_distance_m": round(
+            float(np.interp(stop, grid.time_s, position) - np.interp(app.command_time_s, grid.time_s, position)), 3
+        ),
+        "running_resistance_A_N": round(float(np.asarray(model.conditions.running_resistance_A_N)[b]), 2),
+        "mean_initial_mu": round(float(conditions.initial_mu[b].mean()), 5),
+        "mean_power_coefficient_per_s": round(float(conditions.power_coefficient_per_s[b].mean()), 6),
+        "initial_disc_C": app.initial_disc_C,
+        "ambient_C": app.ambient_C,
+        "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
+    }
 
-    key = {
+
+def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The answer key: the effects and their imprint, the base offset, the measurement chain and
+    the per-application truth."""
+    offset = drawn.offset
+    return {
         "generator": f"brakegym synth {__version__}",
         "seed": seed,
-        "recordings": n,
+        "recordings": len(drawn.applications),
         "vehicle": VEHICLE,
-        "effects": effect_entries,
-        "expected_selected": [entry["id"] for entry in effect_entries if entry["imprint"]["expressed"]],
+        "effects": drawn.effect_entries,
+        "expected_selected": [entry["id"] for entry in drawn.effect_entries if entry["imprint"]["expressed"]],
         "base_offset": offset,
         "base_offset_note": None
         if offset is None
         else "the base model is moved within its own scatter: not an effect, must not be selected",
-        "scatter_setup": scatter_setup,
-        "running_resistance_scatter_sigma_N": vehicle.running_resistance.A_sigma_N if setup.resistance_scatter else 0.0,
-        "decel_source": decel_source,
+        "scatter_setup": drawn.setup.name,
+        "running_resistance_scatter_sigma_N": (
+            drawn.vehicle.running_resistance.A_sigma_N if drawn.setup.resistance_scatter else 0.0
+        ),
+        "decel_source": drawn.decel_source,
         "instrumented_disc": INSTRUMENTED_DISC,
         "sensor_noise": {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()},
         "sample_interval_s": SAMPLE_INTERVAL_S,
@@ -405,21 +463,19 @@ def synthesize(
         "truth_step_s": TRUTH_STEP_S,
         "applications": truth_rows,
     }
-    key_path.parent.mkdir(parents=True, exist_ok=True)
-    key_path.write_text(json.dumps(key, indent=2) + "\n")
-    return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
 
 
-def _simulate_truth(plant, conditions: BatchConditions, chosen: Sequence[Effect], scatter_A: np.ndarray,
-                    applications: Sequence[Application], cylinders: Sequence[BrakeCylinder]):
-    """The true runs of the applications with the effects ``chosen``: (model, grid)."""
-    model = apply_effects(plant, conditions, chosen)
+def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[EffectedModel, GridTrajectory]:
+    """The true runs of the set's applications with the effects ``chosen``: (model, grid)."""
+    model = apply_effects(drawn.plant, drawn.conditions, chosen)
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
         # The effect sets the set's running resistance; each application still scatters around it.
         model.conditions = dataclasses.replace(
-            model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + scatter_A
+            model.conditions,
+            running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn.scatter_A,
         )
-    pressure = CommandedPressure(list(cylinders), plant.n_axles, TRUTH_STEP_S)
+    applications = drawn.applications
+    pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, TRUTH_STEP_S)
     command = np.stack([a.axle_pressure_bar for a in applications])
     command_time = np.array([a.command_time_s for a in applications])
     schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
