@@ -27,7 +27,7 @@ algorithm and fail):
 ``jerk_shaping``
     ``{above_mps3: j0, weight_per_mps3: w}``: a training-only reward term ``-w * max(0, jerk - j0)``
     per control step on the train's jerk, which penalises the *peak* jerk (the environment's own
-    jerk term is linear in |jerk| and so only penalises the total variation of the deceleration).
+    jerk term is linear in ``|jerk|`` and so only penalises the total variation of the deceleration).
     Applied to the evaluation trains of the training run too, so that the kept checkpoint is the
     best on the objective trained for.
 """

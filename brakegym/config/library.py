@@ -63,6 +63,8 @@ _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
     "identification": "identification config",
 }
 
+#: The schema class a config is validated as; :func:`validate` and :func:`load_file` return an
+#: instance of it.
 Model = TypeVar("Model", bound=BaseModel)
 
 _folders_set: tuple[Path, ...] = ()

@@ -180,6 +180,9 @@ class BrakeEnv(gym.Env):
         self._dashboard = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode: draw the train (load, speed, friction scatter, ...) and the task's
+        parameters, unless ``options`` fix them (see the module documentation). Returns the first
+        observation and the info."""
         super().reset(seed=seed)
         self.core.reset(self._index, self.np_random, options)
         observation = self.core.observe(self.np_random)[0]
@@ -192,6 +195,9 @@ class BrakeEnv(gym.Env):
         return observation, info
 
     def step(self, action):
+        """One control step: ``action`` (the action space's shape) sets the cylinder-pressure
+        commands. Returns observation, reward, terminated, truncated and info, as Gymnasium's
+        ``Env.step``; a NaN or a wrong shape raises ``ValueError``."""
         action = np.asarray(action, dtype=np.float64)
         if action.shape != self.action_space.shape:
             raise ValueError(f"action shape {action.shape} does not match the action space {self.action_space.shape}")
@@ -212,6 +218,8 @@ class BrakeEnv(gym.Env):
         self._dashboard.record(observation, info)
 
     def render(self):
+        """The dashboard in the ``render_mode`` given at construction: a text for ``ansi``, an
+        image array for ``rgb_array``, a window for ``human`` (then None)."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to gymnasium.make")
             return None
@@ -225,6 +233,7 @@ class BrakeEnv(gym.Env):
         return None
 
     def close(self):
+        """Close the dashboard, if one is open."""
         if self._dashboard is not None:
             self._dashboard.close()
             self._dashboard = None
@@ -268,6 +277,8 @@ class BrakeVectorEnv(VectorEnv):
         self._options: dict[str, Any] | None = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode in every train; ``options`` fix what is otherwise drawn, for this reset
+        and for the autoresets that follow. Returns the observations (N rows) and the info."""
         if seed is not None:
             self._rng, _ = gym.utils.seeding.np_random(seed)
         self._options = options
@@ -275,6 +286,9 @@ class BrakeVectorEnv(VectorEnv):
         return self.core.observe(self._rng), self.core.info()
 
     def step(self, actions):
+        """One control step of every train: ``actions`` of shape (N, groups). Returns observations,
+        rewards, terminated, truncated (arrays over the trains) and the info; ended trains are
+        restarted in the same step when ``autoreset`` (see the class documentation)."""
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions shape {actions.shape} does not match the action space {self.action_space.shape}")

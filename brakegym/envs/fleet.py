@@ -358,7 +358,7 @@ class TrainFleet:
         return self.sim.to_external(self.sim.disc[T_FRIC]) - ZERO_CELSIUS_K
 
     def measure(self, draws: np.ndarray, out: np.ndarray) -> dict[str, np.ndarray]:
-        """The sensor channels with noise, written into ``out`` (N, :attr:`n_measured_channels`):
+        """The sensor channels with noise, written into ``out`` (N, ``n_measured_channels``):
         speed, deceleration, cylinder pressures (N, axles) and the observed disc temperatures
         (N, observed discs); ``draws`` are standard-normal numbers (N, channels + 1), the last
         column for the distance sensor. Returns the channels by name (views of ``out``) and

@@ -51,7 +51,7 @@ class BrakeTask:
 
     #: the Gymnasium id it is registered as
     env_id: ClassVar[str]
-    #: its name: the stem of its default config ``environments/<name>.yaml``
+    #: the task's name, the stem of its default config ``environments/<name>.yaml``
     name: ClassVar[str]
     #: the model its config is validated as
     config_model: ClassVar[type[BrakeEnvConfig]]
@@ -72,7 +72,7 @@ class BrakeTask:
 
     def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
         """Write the extra observation columns into ``out`` (N, len(extra_observations)), from
-        the measured channels (:meth:`TrainFleet.measure`)."""
+        the measured channels (:meth:`brakegym.envs.fleet.TrainFleet.measure`)."""
 
     def judge(self) -> Outcome:
         raise NotImplementedError

@@ -10,7 +10,7 @@ disc count (1 on the rig, 16 for ``emu_8axle``) and either a known split (the ri
 are independent stops: the spec's MCS-100, global fraction 0) or the split to be fitted.
 
 Method: method of moments with linearised sensitivities
-------------------------------------------------------
+-------------------------------------------------------
 With the sigmas small against the nominal values (0.01 of 0.35, 0.001 of 0.008), a summary Y of a
 stop is nearly linear in each disc's mu_0 and a. Writing g_j for dY/dtheta_j of disc j (by a
 forward difference of the deterministic model, all perturbed copies in one simulator batch),

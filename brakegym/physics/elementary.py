@@ -2,7 +2,7 @@
 
 Each formula of :mod:`brakegym.physics` is written once, as a function of scalars or numpy arrays,
 and runs both as numpy code and, compiled, inside the simulator's kernel. For numpy the functions
-here are numpy's own; :mod:`brakegym.kernel_math` gives the compiled code its own implementations
+here are numpy's own; :mod:`brakegym.simulator.kernel_math` gives the compiled code its own implementations
 of the same mathematics (see there for why), so a formula calls these names rather than ``**`` or
 ``np.where``.
 """

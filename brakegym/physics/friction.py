@@ -9,7 +9,7 @@ standstill stay defined).
 
 The equations are the module-level functions (scalars or arrays, every parameter explicit): the
 methods of :class:`FrictionLaw` call them with numpy arrays, and the simulator's compiled kernel
-(:mod:`brakegym.kernel`) compiles the same functions, so the two cannot drift apart.
+(:mod:`brakegym.simulator.kernel`) compiles the same functions, so the two cannot drift apart.
 """
 
 from __future__ import annotations

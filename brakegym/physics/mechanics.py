@@ -5,7 +5,7 @@ m = sum of m_eff,i, perfect rolling, decelerated by the brake forces of all disc
 by the running resistance F_R(v) = A + B v + C v^2.
 
 Module-level functions are the equations (scalars or arrays, every parameter explicit), shared by
-the numpy code and the simulator's compiled kernel (:mod:`brakegym.kernel`).
+the numpy code and the simulator's compiled kernel (:mod:`brakegym.simulator.kernel`).
 """
 
 from __future__ import annotations

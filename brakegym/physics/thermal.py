@@ -11,7 +11,7 @@ Temperatures in kelvin, heat flows in watts.
 
 The equations are the module-level functions (scalars or arrays, every parameter explicit): the
 methods of :class:`DiscThermalModel` call them with numpy arrays, and the simulator's compiled
-kernel (:mod:`brakegym.kernel`) compiles the same functions.
+kernel (:mod:`brakegym.simulator.kernel`) compiles the same functions.
 """
 
 from __future__ import annotations

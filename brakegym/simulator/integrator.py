@@ -3,7 +3,7 @@
 :class:`Simulator` integrates the physics of :mod:`brakegym.physics` for a batch of applications
 at once, so one call advances every disc of every train. Integration is classic fixed-step RK4
 (spec Section 3: 0.05 % at 0.1 s against the golden values), compiled (:mod:`.kernel`): whole
-steps in one call without state-dependent hooks (:mod:`.hooks`), one call per RK4 stage with them.
+steps in one call without state-dependent hooks (:mod:`brakegym.simulator.hooks`), one call per RK4 stage with them.
 The states are packed arrays with the batch last (:mod:`.state`); interfaces (conditions, pressure
 sources, results) use trains-first arrays and are transposed at the edge. Motion stops at v = 0
 (no reversal); the stop instant is interpolated inside the step, and after it the train stands
@@ -52,14 +52,17 @@ class Simulator:
     step_s:
         Integration step. 0.1 s reproduces the golden values within 0.05 %.
     extra_forces, friction_modifiers:
-        Extension hooks (:mod:`.hooks`).
+        Extension hooks (:mod:`brakegym.simulator.hooks`).
     nominal_running_resistance:
         What Eq. 15's mu_eff is evaluated with (the plant's own if not given).
 
-    ``hold_standing_trains`` (an attribute, False unless set) holds every train that stands still
-    at the start of a step: its states no longer change (a standing disc would otherwise go on
-    cooling). :func:`brakegym.applications.run_stops` sets it while it runs stops to standstill,
-    so that each stop's summary ends at its own standstill and the kernel skips the standing trains.
+    Attributes
+    ----------
+    hold_standing_trains : bool
+        False unless set. When true, every train that stands still at the start of a step is held:
+        its states no longer change (a standing disc would otherwise go on cooling).
+        :func:`brakegym.applications.run_stops` sets it while it runs stops to standstill, so that
+        each stop's summary ends at its own standstill and the kernel skips the standing trains.
     """
 
     def __init__(

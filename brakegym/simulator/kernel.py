@@ -931,7 +931,7 @@ def finish_rk4_step(
 @_compiled
 def deceleration_mps2(parameters, disc, train, moving, clamp_N, friction_scale, extra_force_N, constants, out):
     """Deceleration of each train at the given state (positive while slowing, 0 at standstill):
-    the forces of :func:`_rates_of_tile` without the rates. ``clamp_N`` is (A, 1, B)."""
+    the forces of ``_rates_of_tile`` without the rates. ``clamp_N`` is (A, 1, B)."""
     n_axles, per_axle, n_trains = disc.shape[1], disc.shape[2], disc.shape[3]
     mu_min, mu_max = parameters[MU_MIN], parameters[MU_MAX]
     for train_index in range(n_trains):

@@ -39,7 +39,8 @@ class Plant:
 
     @property
     def radius_ratio(self) -> float:
-        """r_fric / r_wheel: sliding speed per train speed, brake force per friction force."""
+        """The ratio r_fric / r_wheel, which is the sliding speed per train speed and the brake force per
+        friction force."""
         return self.friction_radius_m / self.wheel_radius_m
 
 

@@ -83,6 +83,7 @@ class CommandedPressure:
         self._command[index] = pressure_bar
 
     def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pressures at the start, middle and end of the coming step (:class:`PressureSource`)."""
         stages = np.empty_like(self._stages)  # new arrays each step: the caller may keep them
         kernel.commanded_pressures(
             self._step, self._history, self._dead_steps, self._half_lag, self._full_lag, self._pressure, self._command,
@@ -154,6 +155,7 @@ class PrescribedPressure:
         return self._at(self._t0 + self._step * self.step_s)
 
     def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pressures at the start, middle and end of the coming step (:class:`PressureSource`)."""
         t = self._t0 + self._step * self.step_s
         # The end as the next step will compute its start, so that the two are the same number.
         return self._at(t), self._at(t + 0.5 * self.step_s), self._at(self._t0 + (self._step + 1) * self.step_s)

@@ -4,7 +4,7 @@ control unit receives them.
 Observation: the common columns (:mod:`brakegym.envs.env`), then ``demand_mps2`` (the demanded
 deceleration, zero before ``first_demand_time_s``).
 
-Reward terms: ``tracking`` (-|deceleration - demand| dt while moving), ``jerk``.
+Reward terms: ``tracking`` (``-|deceleration - demand| dt`` while moving), ``jerk``.
 
 Termination: standstill (always a success). Reset options: ``demand_mps2`` and ``demand_hold_s``
 (the levels and holds in order, the last holding to the end). Info: ``demand_mps2`` (the demand of

@@ -8,8 +8,8 @@ distance at the start less the train's odometry, with ``sensor_noise.distance_m`
 ``required_deceleration_mps2`` (v^2 / (2 distance to go) from the measured values, capped at
 3 m/s^2).
 
-Reward terms: ``tracking`` (-|deceleration - v^2/(2 distance to go)| dt), ``jerk`` (-|change of
-deceleration| per control step / dt), ``stop_accuracy`` at the end (+bonus on success, -penalty
+Reward terms: ``tracking`` (``-|deceleration - v^2/(2 distance to go)| dt``), ``jerk``
+(``-|change of deceleration| per control step / dt``), ``stop_accuracy`` at the end (+bonus on success, -penalty
 per metre of stop error).
 
 Termination: standstill, or passing the mark by more than ``overrun_limit_m``. Success: standstill
