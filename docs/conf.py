@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import logging
 import re
 from typing import Any
 
@@ -65,6 +64,8 @@ nitpick_ignore_regex = [
     (r"py:.*", r"torch(\..*)?"),
     (r"py:.*", r"matplotlib(\..*)?"),
     (r"py:.*", r"(typing|types|collections\.abc|argparse|pathlib|importlib)(\..*)?"),
+    # The standard library's names as annotations show them unqualified.
+    (r"py:class", r"Path|Traversable"),
     # What a type annotation shows that is no name: the literals of Annotated[float, Gt(gt=0.1)],
     # and pieces of the quoted annotations of signatures that could not be evaluated.
     (r"py:class", r"-?[0-9][0-9.e+-]*"),
@@ -77,73 +78,6 @@ try:
 except ImportError:  # the builtin theme works offline too
     html_theme = "alabaster"
 html_title = f"brakegym {release}"
-
-
-# --- Warnings from files that other work is changing at the moment ---------------------------------
-# Docstring problems in modules another change is rewriting (brakegym/diagnosis, brakegym/effects,
-# brakegym/statistics.py, brakegym/identification/deterministic.py, brakegym/recordings/format.py).
-# They are printed at the end of the build as "pending" instead of failing it; remove an entry once
-# its file is fixed (the build says which entries no longer match anything).
-_PIPELINE = "brakegym/diagnosis/pipeline.py:docstring of brakegym.diagnosis.pipeline:"
-_FORMAT = "brakegym/recordings/format.py:docstring of brakegym.recordings.format."
-PENDING_WARNINGS: list[tuple[str, str]] = [
-    # the list under step 3 of the module docstring needs blank lines around it
-    (_PIPELINE, "Unexpected indentation"),
-    (_PIPELINE, "Block quote ends without a blank line"),
-    (_PIPELINE, "Bullet list ends without a blank line"),
-    # the report module is now brakegym.diagnosis.markdown
-    (_PIPELINE, "target not found: diagnosis_report"),
-    # property docstrings that start "Words: ...", which numpy style reads as "type: description"
-    (_FORMAT + "RecordingMetadata.train_mass_kg:", "target not found: The train mass"),
-    (_FORMAT + "Recording.name:", "target not found: How messages refer to this recording"),
-]
-
-
-class _PendingWarnings(logging.Filter):
-    def __init__(self, app: Any) -> None:
-        super().__init__()
-        self._app = app
-        self.seen: list[str] = []
-        self.used: set[int] = set()
-
-    def _location(self, location: Any) -> str:
-        """The warning's location as Sphinx prints it ("path:line")."""
-        from docutils import nodes
-        from sphinx.util.logging import get_node_location
-
-        if isinstance(location, tuple):
-            docname, lineno = location
-            return f"{self._app.env.doc2path(docname)}:{lineno}" if docname else ""
-        if isinstance(location, nodes.Node):
-            return get_node_location(location) or ""
-        return str(location or "")
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        location = self._location(getattr(record, "location", None))
-        try:
-            message = record.msg % record.args if record.args else str(record.msg)
-        except (TypeError, ValueError):
-            message = str(record.msg)
-        for index, (path, text) in enumerate(PENDING_WARNINGS):
-            if path in location and text in message:
-                self.used.add(index)
-                self.seen.append(f"{location}: {message}")
-                return False
-        return True
-
-
-def _report_pending(app: Any, exception: Exception | None) -> None:
-    from sphinx.util import logging as sphinx_logging
-
-    pending: _PendingWarnings = app._brakegym_pending
-    logger = sphinx_logging.getLogger(__name__)
-    if pending.seen:
-        logger.info("%d pending warning(s) in files under change (conf.py PENDING_WARNINGS):", len(pending.seen))
-        for line in pending.seen:
-            logger.info("  pending: %s", line)
-    for index, entry in enumerate(PENDING_WARNINGS):
-        if index not in pending.used:
-            logger.info("PENDING_WARNINGS entry no longer needed, remove it: %r", entry)
 
 
 # --- Markdown pipe tables in docstrings ------------------------------------------------------------
@@ -241,13 +175,7 @@ def _resolve_reexport(app: Any, env: Any, node: Any, contnode: Any) -> Any:
 
 
 def setup(app: Any) -> dict[str, Any]:
-    pending = _PendingWarnings(app)
-    app._brakegym_pending = pending
-    for handler in logging.getLogger("sphinx").handlers:
-        if handler.level >= logging.WARNING:
-            handler.filters.insert(0, pending)
     app.connect("autodoc-process-docstring", _process_docstring, priority=400)
     app.connect("autodoc-skip-member", _skip_pydantic_internals)
     app.connect("missing-reference", _resolve_reexport)
-    app.connect("build-finished", _report_pending)
     return {"parallel_read_safe": True}

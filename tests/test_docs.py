@@ -50,3 +50,16 @@ def test_api_pages_document_the_objects(site: Path, page: str, anchor: str) -> N
 def test_pages_are_in_the_site(site: Path) -> None:
     for page in ("index", "installation", "configs", "simulation", "environments", "diagnosis", "tutorial", "physics"):
         assert (site / f"{page}.html").is_file(), page
+
+
+def test_every_module_has_its_api_section():
+    """A new module shows up in the API reference: each module of the package is an automodule of
+    some page of docs/api."""
+    import pkgutil
+
+    import brakegym
+
+    documented = "".join(page.read_text() for page in (DOCS / "api").glob("*.md"))
+    modules = ["brakegym"] + [m.name for m in pkgutil.walk_packages(brakegym.__path__, "brakegym.") if m.name != "brakegym.__main__"]
+    missing = [name for name in modules if f".. automodule:: {name}\n" not in documented]
+    assert not missing

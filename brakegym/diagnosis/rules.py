@@ -26,9 +26,9 @@ class DiagnosisRules:
     #: a recording counts as acted on when the candidate moves its held-out prediction this many
     #: noise sigmas somewhere ...
     heldout_moves_sigma: float = 1.0
-    #: ... or changes its held-out error by this share, either way: a speed-sensor scale that the
+    #: ... or changes its held-out error by this share, either way (a speed-sensor scale that the
     #: initial speeds partly absorb moves most rows by less than a sigma, yet changes whole
-    #: recordings' errors by 10-24 %
+    #: recordings' errors by 10-24 %)
     heldout_acts_share: float = 0.10
     #: the paired t needs at least this many recordings acted on
     heldout_min_recordings: int = 2
@@ -48,10 +48,10 @@ class DiagnosisRules:
     mismatch_rms_over_noise: float = 2.0
 
     # -- screening ------------------------------------------------------------------------------
-    #: grid points per parameter of a one-parameter effect (even: the middle of symmetric bounds,
-    #: often the no-effect value, is no start); 3 per parameter for two, 2 for three
+    #: grid points per parameter of a one-parameter effect, an even number since the middle of
+    #: symmetric bounds (often the no-effect value) is no start; 3 per parameter for two, 2 for three
     grid_points_1d: int = 8
-    #: failed brake units screened: 1 .. this many
+    #: the most failed brake units screened (from 1)
     max_failed_units_screened: int = 4
     #: chord iterations that refit each screened point's nuisance
     screen_chord_iterations: int = 3

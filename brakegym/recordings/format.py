@@ -8,7 +8,7 @@ recordings. Reading validates (:mod:`.validation`): a bad recording raises one
 a user sees it in the CSV: the header is line 1, the first sample line 2) or column or metadata
 field, and the value. A folder with bad recordings raises one :class:`~.problems.DatasetError`
 listing every bad recording, or, when asked, goes on with the good ones and reports the bad ones in
-:attr:`Dataset.errors`. A file that cannot be read or parsed as CSV (not text, malformed quoting)
+``Dataset.errors``. A file that cannot be read or parsed as CSV (not text, malformed quoting)
 is not checked further.
 
 Nothing is dropped, reordered, clipped or invented: a blank cell is a missing sample (NaN) and
@@ -67,12 +67,12 @@ class Recording:
     # -- identification ---------------------------------------------------------------------
     @property
     def name(self) -> str:
-        """How messages refer to this recording: its CSV file, else its stem."""
+        """How messages refer to this recording (its CSV file, else its stem)."""
         return str(self.source) if self.source is not None else f"recording {self.stem!r}"
 
     @property
     def csv_lines(self) -> np.ndarray:
-        """The CSV line of each sample: as read, else as :func:`write_recording` would write it."""
+        """The CSV line of each sample (as read, else as :func:`write_recording` would write it)."""
         if self.line_numbers is not None:
             return np.asarray(self.line_numbers)
         return np.arange(len(self.data)) + 2  # the header is line 1

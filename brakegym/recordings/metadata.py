@@ -131,7 +131,7 @@ class RecordingMetadata(BaseModel):
 
     @property
     def train_mass_kg(self) -> float:
-        """The train mass: ``mass_kg`` when given, else the vehicle's mass for ``load``."""
+        """The train mass, ``mass_kg`` when given, else the vehicle's mass for ``load``."""
         if self.mass_kg is not None:
             return self.mass_kg
         assert self.load is not None

@@ -44,7 +44,7 @@ class RecordingProblem:
 
     @property
     def detail(self) -> str:
-        """The message without the file path: the description, then the further lines."""
+        """The message without the file path (the description, then the further lines)."""
         if not self.also_lines:
             return self.description
         lines = ", ".join(str(line) for line in self.also_lines)
