@@ -8,8 +8,9 @@ deceleration target per train).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -142,7 +143,9 @@ class PIDController:
         derivative = (error - self.previous_error_mps2) / self.dt_s
         self.previous_error_mps2 = error
         unsaturated = self.feed_forward_bar(target, speed) + plant_gain * (
-            gains.proportional_gain * error + gains.integral_gain_per_s * self.integral_mps2 + gains.derivative_gain_s * derivative
+            gains.proportional_gain * error
+            + gains.integral_gain_per_s * self.integral_mps2
+            + gains.derivative_gain_s * derivative
         )
         # Anti-windup: integrate only while the command is not saturated in the error's direction.
         saturated_high = (unsaturated >= self.max_pressure_bar) & (error > 0)
@@ -157,7 +160,7 @@ class PIDController:
 
     def _temperature_limited_bar(self, observation: np.ndarray) -> np.ndarray:
         limiter = self.gains.emergency_stop
-        limit = getattr(self.env_config, "disc_temperature_limit_C")
+        limit = self.env_config.disc_temperature_limit_C
         hottest = observation[:, self.temperature_columns].max(axis=1)
         headroom = (limit - limiter.temperature_margin_C - hottest) / limiter.temperature_band_C
         return self.max_pressure_bar * np.clip(headroom, 0.0, 1.0)

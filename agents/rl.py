@@ -37,13 +37,12 @@ from __future__ import annotations
 import json
 import platform
 import time
+from importlib import resources
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from importlib import resources
-from importlib.resources.abc import Traversable
 
 from .. import config as cfg
 from ..envs.registry import full_env_id
@@ -95,7 +94,9 @@ def load_hyperparameters(algo: str, env_id: str, path: str | Path | None = None)
     own = dict((entries.get(OWN_SECTION) or {}).get(key) or {})
     unknown = sorted(set(own) - set(BRAKEGYM_KEYS))
     if unknown:
-        raise cfg.ConfigError(f"{source}: '{OWN_SECTION}: {key}:' has unknown key(s) {unknown}; allowed {list(BRAKEGYM_KEYS)}")
+        raise cfg.ConfigError(
+            f"{source}: '{OWN_SECTION}: {key}:' has unknown key(s) {unknown}; allowed {list(BRAKEGYM_KEYS)}"
+        )
     hyper.update(own)
     rate = hyper.get("learning_rate")
     if isinstance(rate, str):
@@ -175,7 +176,9 @@ def _wrappers():
             self.base_action = self.pid.act(observation)
             for i in ended:
                 # The ended episode's last observation, with the command the PID gave before.
-                infos[i]["terminal_observation"] = _residual_observation(infos[i]["terminal_observation"][None], previous[i : i + 1])[0]
+                infos[i]["terminal_observation"] = _residual_observation(
+                    infos[i]["terminal_observation"][None], previous[i : i + 1]
+                )[0]
             return _residual_observation(observation, self.base_action), reward, dones, infos
 
     class JerkShaping(VecEnvWrapper):
@@ -202,8 +205,14 @@ def _wrappers():
 
 
 def _vec_env(
-    env_id: str, n_envs: int, seed: int, setup: str, env_config: dict[str, Any] | None,
-    residual: dict[str, Any] | None = None, pid_gains: Any = None, jerk_shaping: dict[str, Any] | None = None,
+    env_id: str,
+    n_envs: int,
+    seed: int,
+    setup: str,
+    env_config: dict[str, Any] | None,
+    residual: dict[str, Any] | None = None,
+    pid_gains: Any = None,
+    jerk_shaping: dict[str, Any] | None = None,
 ):
     from stable_baselines3.common.vec_env import VecMonitor
 
@@ -277,7 +286,9 @@ def train(
     training_env_config = {**(hyper.get("env_config") or {}), **(env_config or {})}
     residual = hyper.get("residual")
     if algo == "ppo-residual" and not residual:
-        raise cfg.ConfigError(f"{algo}: the hyperparameter entry for {short_env_id(env_id)} needs residual: {{base: pid, scale: ...}}")
+        raise cfg.ConfigError(
+            f"{algo}: the hyperparameter entry for {short_env_id(env_id)} needs residual: {{base: pid, scale: ...}}"
+        )
     pid_gains = None
     if residual:
         if residual.get("base") != "pid" or not float(residual.get("scale", 0)) > 0:
@@ -292,7 +303,12 @@ def train(
     venv = VecNormalize(_vec_env(env_id, n_envs, seed, setup, training_env_config, **wrapping), **normalize)
     eval_env = VecNormalize(
         _vec_env(
-            env_id, min(int(hyper.get("n_eval_episodes", 64)), 128), seed + 10_000, setup, training_env_config, **wrapping
+            env_id,
+            min(int(hyper.get("n_eval_episodes", 64)), 128),
+            seed + 10_000,
+            setup,
+            training_env_config,
+            **wrapping,
         ),
         training=False,
         norm_reward=False,
@@ -332,7 +348,10 @@ def train(
         "hyperparameters": hyper,
         "env_config": training_env_config,
         "machine": platform.platform(),
-        "command": f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed}{explicit_steps}{budget} --out {out}",
+        "command": (
+            f"brakegym train --algo {algo} --env {short_env_id(env_id)} --seed {seed}{explicit_steps}{budget} "
+            f"--out {out}"
+        ),
     }
     if residual:
         meta["residual"] = {**residual, "pid_gains": pid_gains.model_dump()}
@@ -375,7 +394,7 @@ class PolicyController:
         self.residual = self.meta.get("residual")
         self.base = None
 
-    def for_env(self, env: Any) -> "PolicyController":
+    def for_env(self, env: Any) -> PolicyController:
         """Bind to a batched environment (a residual policy builds its PID base for it, with the
         gains it was trained with)."""
         if self.residual:

@@ -27,9 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from solve_ivp_baseline import solve_ivp_stop  # noqa: E402
 
 from brakegym import config as cfg  # noqa: E402
-from brakegym.simulator import kernel  # noqa: E402
 from brakegym.applications import DEFAULT_STEP_S  # noqa: E402
 from brakegym.campaigns import field_applications, train_monte_carlo  # noqa: E402
+from brakegym.simulator import kernel  # noqa: E402
 
 
 def main() -> None:
@@ -68,7 +68,9 @@ def main() -> None:
     sample = rng.choice(len(apps), size=args.baseline_stops, replace=False)
     start = time.perf_counter()
     baseline = [
-        solve_ivp_stop(vehicle, apps[i], draw.initial_mu[i], draw.power_coefficient_per_s[i], float(resistance[i]), rtol=1e-6)
+        solve_ivp_stop(
+            vehicle, apps[i], draw.initial_mu[i], draw.power_coefficient_per_s[i], float(resistance[i]), rtol=1e-6
+        )
         for i in sample
     ]
     baseline_time = time.perf_counter() - start
@@ -82,11 +84,13 @@ def main() -> None:
         per_disc_stop = seconds / (stops * n_discs)
         print(
             f"  batched, {workers} process(es): {seconds:6.2f} s   {disc_steps / seconds:12,.0f} disc-steps/s   "
-            f"{1e6 * per_disc_stop:7.2f} us per disc-stop   ratio vs solve_ivp {baseline_per_stop / n_discs / per_disc_stop:6.1f}x"
+            f"{1e6 * per_disc_stop:7.2f} us per disc-stop   "
+            f"ratio vs solve_ivp {baseline_per_stop / n_discs / per_disc_stop:6.1f}x"
         )
     print(
         f"  solve_ivp baseline (RK45, rtol 1e-6), {len(sample)} stops: {1e3 * baseline_per_stop:.1f} ms per stop, "
-        f"{1e6 * baseline_per_stop / n_discs:.1f} us per disc-stop, extrapolated {baseline_per_stop * stops:.0f} s for the campaign"
+        f"{1e6 * baseline_per_stop / n_discs:.1f} us per disc-stop, "
+        f"extrapolated {baseline_per_stop * stops:.0f} s for the campaign"
     )
     print(f"  largest stop-distance difference batched vs solve_ivp: {100 * difference:.3f} %")
     print(f"  1 and 2 processes give identical results: {identical}")

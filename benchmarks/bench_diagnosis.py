@@ -47,8 +47,16 @@ from brakegym.effects import EFFECTS
 from brakegym.recordings.synth import synthesize
 
 DEFAULT_RECORDINGS = 8
-CANDIDATE_KEYS = ("effects", "parameters", "delta_bic", "relevant_size", "heldout_gain", "heldout_t", "heldout_acts_on",
-                  "heldout_gain_per_recording")
+CANDIDATE_KEYS = (
+    "effects",
+    "parameters",
+    "delta_bic",
+    "relevant_size",
+    "heldout_gain",
+    "heldout_t",
+    "heldout_acts_on",
+    "heldout_gain_per_recording",
+)
 
 
 def judge(truth: list[str], selected: list[str], indistinguishable: list[list[str]]) -> tuple[str, bool]:
@@ -69,31 +77,55 @@ def expressed_effects(row: dict[str, Any]) -> list[str]:
     if not row["truth"]:
         return []
     with tempfile.TemporaryDirectory() as tmp:
-        key = synthesize(Path(tmp) / "set", row.get("recordings", DEFAULT_RECORDINGS), row["seed"], random_effects=True,
-                         base_offset=row["base_offset"], key_path=Path(tmp) / "key.json").key
+        key = synthesize(
+            Path(tmp) / "set",
+            row.get("recordings", DEFAULT_RECORDINGS),
+            row["seed"],
+            random_effects=True,
+            base_offset=row["base_offset"],
+            key_path=Path(tmp) / "key.json",
+        ).key
     if [e["parameters"] for e in key["effects"]] != [e["parameters"] for e in row["truth"]]:
-        raise ValueError(f"set {row['index']} (seed {row['seed']}): synthesized again, it draws other effects than the row's")
+        raise ValueError(
+            f"set {row['index']} (seed {row['seed']}): synthesized again, it draws other effects than the row's"
+        )
     return key["expected_selected"]
 
 
-def run_set(index: int, seed: int, free: bool, offset: bool, recordings: int, args: argparse.Namespace, tmp: Path) -> dict[str, Any]:
+def run_set(
+    index: int, seed: int, free: bool, offset: bool, recordings: int, args: argparse.Namespace, tmp: Path
+) -> dict[str, Any]:
     """Synthesize one set, diagnose it blind, and judge the verdict against the key."""
     started = time.time()
     # Named by the set seed: a rerun may hold the same index from several runs.
     folder = tmp / f"set_{seed}"
-    result = synthesize(folder, recordings, seed, random_effects=not free, base_offset=offset,
-                        key_path=tmp / f"key_{seed}.json")
+    result = synthesize(
+        folder, recordings, seed, random_effects=not free, base_offset=offset, key_path=tmp / f"key_{seed}.json"
+    )
     truth = [e["id"] for e in result.key["effects"]]
     report = diagnose(folder, top_singles=args.top_singles, pairs_from=args.pairs_from).report
     selected = report["selected"]
     kind, hit = judge(truth, selected, report["indistinguishable"])
     chosen = next((c for c in report["candidates"] if c["effects"] == selected), None) if selected else None
     return {
-        "index": index, "seed": seed, "recordings": recordings, "kind": kind, "truth": result.key["effects"], "base_offset": offset,
-        "selected": selected, "parameters": report["parameters"], "ci95": chosen["ci95"] if chosen else {},
-        "indistinguishable": report["indistinguishable"], "signature_correlations": report["signature_correlations"], "unconfirmed": [u["effects"] for u in report["unconfirmed"]], "hit": bool(hit), "expressed": result.key["expected_selected"], "seconds": round(time.time() - started, 1),
+        "index": index,
+        "seed": seed,
+        "recordings": recordings,
+        "kind": kind,
+        "truth": result.key["effects"],
+        "base_offset": offset,
+        "selected": selected,
+        "parameters": report["parameters"],
+        "ci95": chosen["ci95"] if chosen else {},
+        "indistinguishable": report["indistinguishable"],
+        "signature_correlations": report["signature_correlations"],
+        "unconfirmed": [u["effects"] for u in report["unconfirmed"]],
+        "hit": bool(hit),
+        "expressed": result.key["expected_selected"],
+        "seconds": round(time.time() - started, 1),
         # What a change to the selection rules can be judged on again without diagnosing anew.
-        "chi2_eff_unmodified": report["chi2_eff_unmodified"], "screening": report["screening"],
+        "chi2_eff_unmodified": report["chi2_eff_unmodified"],
+        "screening": report["screening"],
         "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],
     }
 
@@ -106,7 +138,9 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
     for row in rows:
         totals[row["kind"]] += 1
         hits[row["kind"]] += row["hit"]
-        truth_label = "+".join(e["id"] for e in row["truth"]) or ("none (base offset)" if row["base_offset"] else "none")
+        truth_label = "+".join(e["id"] for e in row["truth"]) or (
+            "none (base offset)" if row["base_offset"] else "none"
+        )
         confusion[truth_label]["+".join(row["selected"]) or "nothing"] += 1
         for effect in row["truth"]:
             if effect["id"] not in row["selected"]:
@@ -116,9 +150,11 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
                     low, high = row["ci95"][name]
                     recovery[f"{effect['id']}.{name}"].append(
                         (
-                            float(true_value), float(row["parameters"][name]), bool(low <= true_value <= high),
+                            float(true_value),
+                            float(row["parameters"][name]),
+                            bool(low <= true_value <= high),
                             sorted(row["selected"]) == sorted(e["id"] for e in row["truth"]),
-                        )  # fmt: skip
+                        )
                     )
     print()
     for kind in ("single", "pair", "none"):
@@ -138,8 +174,10 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
     print("\njudged by the effects expressed in the data (moving some sample by >= 1 noise sigma):")
     for kind in ("single", "pair", "none"):
         if expressed_totals[kind]:
-            print(f"{kind:7s} sets: {expressed_hits[kind]}/{expressed_totals[kind]} hits "
-                  f"({100 * expressed_hits[kind] / expressed_totals[kind]:.0f} %)")
+            print(
+                f"{kind:7s} sets: {expressed_hits[kind]}/{expressed_totals[kind]} hits "
+                f"({100 * expressed_hits[kind] / expressed_totals[kind]:.0f} %)"
+            )
     print(f"all     sets: {sum(expressed_hits.values())}/{sum(expressed_totals.values())}")
     print("drawn but not expressed: " + (", ".join(f"{k}: {v}" for k, v in unexpressed.most_common()) or "none"))
     named_pairs = sum(bool(row["indistinguishable"]) for row in rows)
@@ -148,25 +186,35 @@ def summarize(rows: list[dict[str, Any]], args: argparse.Namespace, seconds: flo
     flagged = [row for row in rows if row.get("unconfirmed")]
     in_data = sum(any(set(ids) <= set(expressed_effects(row)) for ids in row["unconfirmed"]) for row in flagged)
     free = sum(not row["truth"] for row in flagged)
-    print(f"sets with an unconfirmed candidate (not selected: acts on too few recordings): {len(flagged)}; "
-          f"an effect in the data: {in_data}; in effect-free sets: {free}")
+    print(
+        f"sets with an unconfirmed candidate (not selected: acts on too few recordings): {len(flagged)}; "
+        f"an effect in the data: {in_data}; in effect-free sets: {free}"
+    )
     print("\nconfusion (truth -> selected):")
     for truth_label in sorted(confusion):
         print(f"  {truth_label:40s} " + ", ".join(f"{k}: {v}" for k, v in confusion[truth_label].most_common()))
     if recovery:
-        print("\nparameter recovery where the effect was selected (median |fitted - truth| / |truth|; truth inside the 95 % interval,\n"
-              "in all those sets and in those where exactly the effects drawn were selected, the model then being right):")
+        print(
+            "\nparameter recovery where the effect was selected (median |fitted - truth| / |truth|; "
+            "truth inside the 95 % interval,\n"
+            "in all those sets and in those where exactly the effects drawn were selected, the model then being right):"
+        )
         for name in sorted(recovery):
             values = recovery[name]
             errors = [abs(f - t) / max(abs(t), 1e-9) for t, f, _, _ in values]
             covered = sum(c for _, _, c, _ in values)
             exact = [c for _, _, c, right in values if right]
-            print(f"  {name:40s} n={len(values):3d}  median error {100 * float(np.median(errors)):5.1f} %  covered {covered}/{len(values)}"
-                  f"  (exact model: {sum(exact)}/{len(exact)})")
+            print(
+                f"  {name:40s} n={len(values):3d}  median error {100 * float(np.median(errors)):5.1f} %  "
+                f"covered {covered}/{len(values)}"
+                f"  (exact model: {sum(exact)}/{len(exact)})"
+            )
     # Rows written before the count was recorded hold the default.
     counts = sorted({row.get("recordings", DEFAULT_RECORDINGS) for row in rows})
     shown = "/".join(str(c) for c in counts)
-    print(f"\nlibrary: {', '.join(EFFECTS)}; {shown} recordings per set; {len(rows)} sets, {seconds:.0f} s of diagnosis")
+    print(
+        f"\nlibrary: {', '.join(EFFECTS)}; {shown} recordings per set; {len(rows)} sets, {seconds:.0f} s of diagnosis"
+    )
 
 
 def drawn_jobs(seed: int, sets: int, free_share: float, recordings: int):
@@ -181,8 +229,13 @@ def drawn_jobs(seed: int, sets: int, free_share: float, recordings: int):
         yield index, set_seed, free, offset, recordings
 
 
-def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None, single: bool = False,
-               set_seeds: list[int] | None = None):
+def rerun_jobs(
+    paths: list[str],
+    where: list[str] | None,
+    max_sets: int | None,
+    single: bool = False,
+    set_seeds: list[int] | None = None,
+):
     """The sets of earlier rows again (same seeds, same bytes), those whose drawn effects include
     one of ``where`` (``none``: the effect-free sets), with ``single`` only the one-effect sets,
     with ``set_seeds`` only the sets of those seeds, for a check of a change to the diagnosis on
@@ -205,15 +258,29 @@ def rerun_jobs(paths: list[str], where: list[str] | None, max_sets: int | None, 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--summarize", nargs="+", metavar="ROWS.json",
-                        help="summarize the rows that earlier runs wrote with --json, and run nothing")
-    parser.add_argument("--rerun", nargs="+", metavar="ROWS.json",
-                        help="diagnose the sets of earlier rows again (with --where: only those with these effects)")
-    parser.add_argument("--where", action="append", metavar="EFFECT|none",
-                        help="with --rerun: sets whose drawn effects include EFFECT, or effect-free ones (repeatable)")
+    parser.add_argument(
+        "--summarize",
+        nargs="+",
+        metavar="ROWS.json",
+        help="summarize the rows that earlier runs wrote with --json, and run nothing",
+    )
+    parser.add_argument(
+        "--rerun",
+        nargs="+",
+        metavar="ROWS.json",
+        help="diagnose the sets of earlier rows again (with --where: only those with these effects)",
+    )
+    parser.add_argument(
+        "--where",
+        action="append",
+        metavar="EFFECT|none",
+        help="with --rerun: sets whose drawn effects include EFFECT, or effect-free ones (repeatable)",
+    )
     parser.add_argument("--max-sets", type=int, help="with --rerun: at most this many sets")
     parser.add_argument("--single", action="store_true", help="with --rerun: only the sets with one effect")
-    parser.add_argument("--set-seed", type=int, action="append", help="with --rerun: only the set of this seed (a row's 'seed')")
+    parser.add_argument(
+        "--set-seed", type=int, action="append", help="with --rerun: only the set of this seed (a row's 'seed')"
+    )
     parser.add_argument("--sets", type=int)
     parser.add_argument("--seed", type=int)
     parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
@@ -242,8 +309,11 @@ def main() -> None:
                 row = run_set(index, seed, free, offset, recordings, args, Path(tmp))
                 rows.append(row)
                 truth_label = "+".join(e["id"] for e in row["truth"]) or ("none (base offset)" if offset else "none")
-                print(f"[{number}/{len(jobs)}] {time.time() - started:.0f} s  truth {truth_label:40s} "
-                      f"selected {row['selected']} {'hit' if row['hit'] else 'MISS'}", flush=True)
+                print(
+                    f"[{number}/{len(jobs)}] {time.time() - started:.0f} s  truth {truth_label:40s} "
+                    f"selected {row['selected']} {'hit' if row['hit'] else 'MISS'}",
+                    flush=True,
+                )
                 if args.json:
                     Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
     except KeyboardInterrupt:

@@ -52,7 +52,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20000, help="single-env steps (default 20000)")
     parser.add_argument("--trains", type=int, default=256, help="trains in the batched env (default 256)")
     parser.add_argument("--vector-steps", type=int, default=2000, help="batched steps (default 2000)")
-    parser.add_argument("--repeats", type=int, default=3, help="runs of each native env, best and range printed (default 3)")
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="runs of each native env, best and range printed (default 3)"
+    )
     args = parser.parse_args()
 
     single_steps_per_s(200, wrapped=False)  # warm-up: imports, compiled kernels
@@ -71,7 +73,9 @@ def main() -> None:
         return f"{max(wall):10.0f} (CPU time {max(cpu):.0f}{runs})"
 
     best_raw, best_native = max(rate for rate, _ in raw), max(rate for rate, _ in native)
-    print(f"single env (BrakeEnv, unwrapped)    :        {spread(raw)} steps/s   (target 5,000: {best_raw / 5000:.2f}x)")
+    print(
+        f"single env (BrakeEnv, unwrapped)    :        {spread(raw)} steps/s   (target 5,000: {best_raw / 5000:.2f}x)"
+    )
     print(f"single env (gymnasium.make, checker wrappers): {wrapped[0]:10.0f} steps/s")
     print(
         f"batched, {args.trains} trains (BrakeVectorEnv):  {spread(native)} train-steps/s "

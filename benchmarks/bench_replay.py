@@ -44,12 +44,16 @@ def best_seconds(batch, effects, repeats: int) -> tuple[float, list]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--recordings", type=int, default=8)
-    parser.add_argument("--points", type=int, default=9, help="parameter points per batch (default 9, a screening batch)")
+    parser.add_argument(
+        "--points", type=int, default=9, help="parameter points per batch (default 9, a screening batch)"
+    )
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
-        folder = synthesize(Path(tmp) / "set", args.recordings, 3, effects=[EffectRequest("gradient", {"gradient_permil": -5.8})]).folder
+        folder = synthesize(
+            Path(tmp) / "set", args.recordings, 3, effects=[EffectRequest("gradient", {"gradient_permil": -5.8})]
+        ).folder
         recordings = read_dataset(folder).recordings
     batch = recordings * args.points
     effects = [Gradient(gradient_permil=-5.0), FrictionLevel(mu_scale=np.linspace(0.9, 1.1, len(batch)))]
@@ -61,9 +65,14 @@ def main() -> None:
         looped, slow = best_seconds(batch, effects, args.repeats)
     finally:
         replay_module.simulate_steps = original
-    same = all(np.array_equal(a.channels[k], b.channels[k], equal_nan=True) for a, b in zip(fast, slow) for k in a.channels)
+    same = all(
+        np.array_equal(a.channels[k], b.channels[k], equal_nan=True) for a, b in zip(fast, slow) for k in a.channels
+    )
 
-    print(f"replay_batch of {len(batch)} trains ({args.recordings} recordings x {args.points} points), best of {args.repeats}:")
+    print(
+        f"replay_batch of {len(batch)} trains ({args.recordings} recordings x {args.points} points), "
+        f"best of {args.repeats}:"
+    )
     print(f"  step-by-step loop (baseline): {looped * 1e3:8.1f} ms")
     print(f"  one compiled call:            {compiled * 1e3:8.1f} ms   ({looped / compiled:.1f}x)")
     print(f"  same channels, bit for bit:   {same}")

@@ -26,8 +26,8 @@ import numpy as np
 from brakegym import config as cfg
 from brakegym.physics import draw_friction
 from brakegym.plants import brake_cylinder, scatter_partition, stochastic_friction, train_plant
-from brakegym.units import ZERO_CELSIUS_K
 from brakegym.simulator import BatchConditions, CommandedPressure, NumpyReferenceSimulator, Simulator
+from brakegym.units import ZERO_CELSIUS_K
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -106,8 +106,10 @@ def main() -> None:
 
     braking_batch(1, args.step, Simulator)[0].step()  # load the kernels before timing
     print(f"Simulator.step() with set_command, 16-disc trains braking, step {args.step} s (median of runs)")
-    print(f"{'B':>6} {'numpy us/step':>14} {'compiled us/step':>17} {'numpy train-steps/s':>20} "
-          f"{'compiled train-steps/s':>23} {'ratio':>7}")  # fmt: skip
+    print(
+        f"{'B':>6} {'numpy us/step':>14} {'compiled us/step':>17} {'numpy train-steps/s':>20} "
+        f"{'compiled train-steps/s':>23} {'ratio':>7}"
+    )
     for n in args.batches:
         reference = median_seconds_per_step(n, args.step, NumpyReferenceSimulator, args.budget)
         compiled = median_seconds_per_step(n, args.step, Simulator, args.budget)
@@ -120,8 +122,9 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as cache_dir:
             import_s, compile_s = startup_seconds(cache_dir)
             cached_import_s, load_s = startup_seconds(cache_dir)
-        print(f"first compile of all kernels (empty cache): {compile_s:.1f} s, once per machine "
-              f"(import {import_s:.1f} s)")  # fmt: skip
+        print(
+            f"first compile of all kernels (empty cache): {compile_s:.1f} s, once per machine (import {import_s:.1f} s)"
+        )
         print(f"a later process: import {cached_import_s:.1f} s, kernels loaded from the cache in {load_s:.1f} s")
 
 

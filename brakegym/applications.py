@@ -8,8 +8,8 @@ summaries (and time series on request).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -128,7 +128,7 @@ class StopSummary:
 def run_stops(
     sim: Simulator,
     nominal_clamp_force_N: np.ndarray,
-    command: "CommandSchedule",
+    command: CommandSchedule,
     record_every: int | None = None,
     until_time_s: float | None = None,
     max_time_s: float = MAX_STOP_TIME_S,

@@ -10,9 +10,10 @@ the load-weighing signal) and ``act(observations) -> actions`` over the batch.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Protocol, Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -212,16 +213,17 @@ def table(reports: Sequence[dict[str, Any]]) -> str:
     )
     lines = [f"({metric} in {unit})", "", header, "|" + "---|" * 11]
     for rep in reports:
-        for label, row in [(f"{b['initial_speed_kmh'][0]:.0f}-{b['initial_speed_kmh'][1]:.0f}", b) for b in rep["bands"]] + [
-            ("all", rep["overall"])
-        ]:
+        for label, row in [
+            (f"{b['initial_speed_kmh'][0]:.0f}-{b['initial_speed_kmh'][1]:.0f}", b) for b in rep["bands"]
+        ] + [("all", rep["overall"])]:
             if row["episodes"] == 0:
                 continue
             lines.append(
                 f"| {rep['agent']} | {label} | {row['episodes']} | {100 * row['success_rate']:.1f} % "
                 f"| {row[metric + '_mean']:.3f} | {row[metric + '_std']:.3f} | {row[metric + '_abs_p95']:.3f} "
                 f"| {row[metric + '_abs_p99']:.3f} | {row[metric + '_abs_worst']:.3f} "
-                f"| {row['peak_jerk_mps3_p95']:.2f} / {row['peak_jerk_mps3_max']:.2f} | {row['peak_disc_temperature_C_max']:.0f} |"
+                f"| {row['peak_jerk_mps3_p95']:.2f} / {row['peak_jerk_mps3_max']:.2f} "
+                f"| {row['peak_disc_temperature_C_max']:.0f} |"
             )
     return "\n".join(lines)
 
@@ -239,12 +241,20 @@ def comparison_figure(results: Sequence[StressResult], edges_kmh: Sequence[float
         bands = speed_bands(result, edges_kmh)
         positions = np.arange(len(bands)) + (k - (len(results) - 1) / 2) * width
         metric_axis.boxplot(
-            [result.metric[mask] for _, _, mask in bands], positions=positions, widths=width * 0.9,
-            patch_artist=True, boxprops={"facecolor": f"C{k}", "alpha": 0.6}, flierprops={"markersize": 2},
+            [result.metric[mask] for _, _, mask in bands],
+            positions=positions,
+            widths=width * 0.9,
+            patch_artist=True,
+            boxprops={"facecolor": f"C{k}", "alpha": 0.6},
+            flierprops={"markersize": 2},
         )
         jerk_axis.boxplot(
-            [result.peak_jerk_mps3[mask] for _, _, mask in bands], positions=positions, widths=width * 0.9,
-            patch_artist=True, boxprops={"facecolor": f"C{k}", "alpha": 0.6}, flierprops={"markersize": 2},
+            [result.peak_jerk_mps3[mask] for _, _, mask in bands],
+            positions=positions,
+            widths=width * 0.9,
+            patch_artist=True,
+            boxprops={"facecolor": f"C{k}", "alpha": 0.6},
+            flierprops={"markersize": 2},
         )
         metric_axis.plot([], [], color=f"C{k}", linewidth=6, alpha=0.6, label=result.agent)
     labels = [f"{low:.0f}-{high:.0f}" for low, high, _ in speed_bands(results[0], edges_kmh)]

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import matplotlib
 
@@ -152,8 +152,12 @@ def fig1_speed_dependence(out_dir: Path = DEFAULT_OUT_DIR) -> dict[str, object]:
         "braking_time_160_s": float(duration_s[1]),
         "peak_friction_temperature_100_C": float(stops.peak_temperature_C[0]),
         "peak_friction_temperature_160_C": float(stops.peak_temperature_C[1]),
-        f"deceleration_at_{compare_at_kmh:.0f}_kmh_from_100_mps2": at_speed(trajectory.deceleration_mps2, 0, compare_at_kmh),
-        f"deceleration_at_{compare_at_kmh:.0f}_kmh_from_160_mps2": at_speed(trajectory.deceleration_mps2, 1, compare_at_kmh),
+        f"deceleration_at_{compare_at_kmh:.0f}_kmh_from_100_mps2": at_speed(
+            trajectory.deceleration_mps2, 0, compare_at_kmh
+        ),
+        f"deceleration_at_{compare_at_kmh:.0f}_kmh_from_160_mps2": at_speed(
+            trajectory.deceleration_mps2, 1, compare_at_kmh
+        ),
         f"mu_at_{compare_at_kmh:.0f}_kmh_from_100": at_speed(mu, 0, compare_at_kmh),
         f"mu_at_{compare_at_kmh:.0f}_kmh_from_160": at_speed(mu, 1, compare_at_kmh),
         "min_mu_160": float(mu[braking[:, 1], 1].min()),
@@ -215,7 +219,11 @@ def fig1_speed_dependence(out_dir: Path = DEFAULT_OUT_DIR) -> dict[str, object]:
     for stop, v0 in enumerate(initial_speeds_kmh):
         part = braking[:, stop]
         ax_terms.plot(
-            speed_kmh[part, stop], net_rate[part, stop], color="k", lw=1.2, ls="-" if v0 == 160.0 else "--",
+            speed_kmh[part, stop],
+            net_rate[part, stop],
+            color="k",
+            lw=1.2,
+            ls="-" if v0 == 160.0 else "--",
             label="dμ/dt, the sum" if v0 == 160.0 else None,
         )
     ax_terms.axhline(0, color="k", lw=0.5)
@@ -430,11 +438,19 @@ def fig3_sixteen_discs(
     for name in setup_names:
         summary = results[(name, False)]
         ax_mu.hist(
-            summary.mu_s_eff, bins=mu_bins, histtype="step", lw=1.8, color=colors[name],
+            summary.mu_s_eff,
+            bins=mu_bins,
+            histtype="step",
+            lw=1.8,
+            color=colors[name],
             label=f"{labels[name]}\nσ = {np.std(summary.mu_s_eff, ddof=1):.4f}",
         )
         ax_distance.hist(
-            summary.braking_distance_m, bins=distance_bins, histtype="step", lw=1.8, color=colors[name],
+            summary.braking_distance_m,
+            bins=distance_bins,
+            histtype="step",
+            lw=1.8,
+            color=colors[name],
             label=f"{name}: σ = {np.std(summary.braking_distance_m, ddof=1):.1f} m",
         )
     for ax in (ax_mu, ax_distance):
@@ -450,9 +466,16 @@ def fig3_sixteen_discs(
     width = 0.38
     friction_only = [std_mu[(name, False)] for name in setup_names]
     with_resistance = [std_mu[(name, True)] for name in setup_names]
-    ax_std.bar(x - width / 2, friction_only, width, color=[colors[n] for n in setup_names], label="friction scatter only")
     ax_std.bar(
-        x + width / 2, with_resistance, width, color=[colors[n] for n in setup_names], alpha=0.45, hatch="//",
+        x - width / 2, friction_only, width, color=[colors[n] for n in setup_names], label="friction scatter only"
+    )
+    ax_std.bar(
+        x + width / 2,
+        with_resistance,
+        width,
+        color=[colors[n] for n in setup_names],
+        alpha=0.45,
+        hatch="//",
         label="+ running-resistance scatter",
     )
     shared_std = std_mu[("shared", False)]
@@ -489,7 +512,9 @@ def _import_pid_controller():
     return PIDController
 
 
-def _run_station_stops(env, options: dict[str, object], seed: int, act: Callable, on_reset=None) -> dict[str, np.ndarray]:
+def _run_station_stops(
+    env, options: dict[str, object], seed: int, act: Callable, on_reset=None
+) -> dict[str, np.ndarray]:
     """Run every train of a vector env (autoreset off) once until its episode ends. Returns per
     train the stop error where it ended and, per control step, the command of axle 1, the mean
     mu of its discs and whether it was still moving."""
@@ -655,27 +680,44 @@ def fig4_controller(
     ax_open, ax_pid, ax_command, ax_scatter = axes.ravel()
     open_bins = np.linspace(-25, 25, 41)
     ax_open.hist(
-        open_loop["stop_error_m"], bins=open_bins, color="tab:gray", alpha=0.8,
+        open_loop["stop_error_m"],
+        bins=open_bins,
+        color="tab:gray",
+        alpha=0.8,
         label=f"MCS-75/25: σ = {numbers['open_loop_stop_error_std_m']:.1f} m",
     )
     ax_open.hist(
-        open_loop_friction_only["stop_error_m"], bins=open_bins, histtype="step", lw=2, color="tab:orange",
+        open_loop_friction_only["stop_error_m"],
+        bins=open_bins,
+        histtype="step",
+        lw=2,
+        color="tab:orange",
         label=f"friction scatter only: σ = {numbers['open_loop_friction_only_stop_error_std_m']:.1f} m",
     )
     ax_open.set_title(f"(a) open loop, constant {open_loop_pressure_bar:.2f} bar")
     pid_bins = np.linspace(-0.1, 0.1, 41)
     ax_pid.hist(
-        pid["stop_error_m"], bins=pid_bins, color="tab:blue", alpha=0.8,
+        pid["stop_error_m"],
+        bins=pid_bins,
+        color="tab:blue",
+        alpha=0.8,
         label=f"MCS-75/25: σ = {100 * numbers['pid_stop_error_std_m']:.1f} cm",
     )
     ax_pid.hist(
-        pid_friction_only["stop_error_m"], bins=pid_bins, histtype="step", lw=2, color="tab:orange",
+        pid_friction_only["stop_error_m"],
+        bins=pid_bins,
+        histtype="step",
+        lw=2,
+        color="tab:orange",
         label=f"friction scatter only: σ = {100 * numbers['pid_friction_only_stop_error_std_m']:.1f} cm",
     )
     ax_pid.set_title("(b) PID (agents/pid.py); note the scale: centimetres")
     for ax in (ax_open, ax_pid):
         ax.axvspan(
-            -success_tolerance_m, success_tolerance_m, color="tab:green", alpha=0.15,
+            -success_tolerance_m,
+            success_tolerance_m,
+            color="tab:green",
+            alpha=0.15,
             label=f"±{success_tolerance_m} m success band",
         )
         ax.set_xlabel("stop error: position − mark [m]")
@@ -713,8 +755,8 @@ def fig4_controller(
     )
     ax_scatter.grid(alpha=0.3)
     fig.suptitle(
-        f"Fig. 4: StationStop, {n_trains} trains from {initial_speed_kmh:.0f} km/h, mark at {distance_to_mark_m:.0f} m, "
-        "empty, MCS-75/25 scatter"
+        f"Fig. 4: StationStop, {n_trains} trains from {initial_speed_kmh:.0f} km/h, "
+        f"mark at {distance_to_mark_m:.0f} m, empty, MCS-75/25 scatter"
     )
     fig.tight_layout()
     numbers["figure"] = str(_save(fig, out_dir, "fig4_controller.png"))

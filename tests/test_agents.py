@@ -57,12 +57,28 @@ def test_pid_gains_config_is_validated(tmp_path):
 
 def test_cli_stress_writes_table_figure_and_json(tmp_path, capsys):
     out = tmp_path / "stress"
-    code = main(["stress", "--agent", "pid", "--episodes", "30", "--batch", "30", "--out", str(out), "--json", str(tmp_path / "s.json")])
+    code = main(
+        [
+            "stress",
+            "--agent",
+            "pid",
+            "--episodes",
+            "30",
+            "--batch",
+            "30",
+            "--out",
+            str(out),
+            "--json",
+            str(tmp_path / "s.json"),
+        ]
+    )
     assert code == 0
     payload = json.loads((tmp_path / "s.json").read_text())
     overall = payload["agents"][0]["overall"]
     assert overall["episodes"] == 30 and 0.0 <= overall["success_rate"] <= 1.0
-    assert {"stop_error_m_abs_p95", "stop_error_m_abs_p99", "stop_error_m_abs_worst", "peak_jerk_mps3_max"} <= set(overall)
+    assert {"stop_error_m_abs_p95", "stop_error_m_abs_p99", "stop_error_m_abs_worst", "peak_jerk_mps3_max"} <= set(
+        overall
+    )
     assert (out / "stress_comparison.png").stat().st_size > 10_000
     assert json.loads((out / "worst_pid.json").read_text())
     assert "| pid | all | 30 |" in capsys.readouterr().out
@@ -102,8 +118,14 @@ def _tiny_hyperparameters(tmp_path, **extra):
     import yaml
 
     entry = {
-        "n_envs": 4, "n_timesteps": 128, "policy": "MlpPolicy", "normalize": {"norm_obs": True, "norm_reward": True},
-        "n_steps": 32, "batch_size": 64, "n_epochs": 1, "policy_kwargs": {"net_arch": [8, 8]},
+        "n_envs": 4,
+        "n_timesteps": 128,
+        "policy": "MlpPolicy",
+        "normalize": {"norm_obs": True, "norm_reward": True},
+        "n_steps": 32,
+        "batch_size": 64,
+        "n_epochs": 1,
+        "policy_kwargs": {"net_arch": [8, 8]},
     }
     own = {"eval_freq_steps": 64, "n_eval_episodes": 4, **extra}  # brakegym's keys, apart from rl_zoo3's
     path = tmp_path / "hyper.yaml"
@@ -122,16 +144,23 @@ def test_residual_agent_round_trip_and_zero_correction_is_the_pid(tmp_path):
         jerk_shaping={"above_mps3": 0.6, "weight_per_mps3": 1.0},
         env_config={"reward": {"jerk_per_mps3": 0.1}},
     )
-    folder = train("ppo-residual", "StationStop-v0", tmp_path / "agent", seed=3, hyperparameters=hyper, progress_bar=False)
+    folder = train(
+        "ppo-residual", "StationStop-v0", tmp_path / "agent", seed=3, hyperparameters=hyper, progress_bar=False
+    )
     meta = json.loads((folder / "training.json").read_text())
     assert meta["env_config"] == {"reward": {"jerk_per_mps3": 0.1}}
     assert meta["residual"]["scale"] == 0.5 and meta["residual"]["pid_gains"]["proportional_gain"] == 0.6
     assert meta["command"].startswith("brakegym train --algo ppo-residual --env StationStop-v0 --seed 3")
-    assert (folder / "best" / "model.zip").is_file() and json.loads((folder / "best" / "training.json").read_text())["checkpoint_step"] > 0
+    assert (folder / "best" / "model.zip").is_file() and json.loads((folder / "best" / "training.json").read_text())[
+        "checkpoint_step"
+    ] > 0
 
     controller = PolicyController(folder)
     groups = controller.model.action_space.shape[0]
-    controller.model.predict = lambda observation, deterministic: (np.zeros((len(observation), groups), dtype=np.float32), None)
+    controller.model.predict = lambda observation, deterministic: (
+        np.zeros((len(observation), groups), dtype=np.float32),
+        None,
+    )
     residual = run_stress("StationStop-v0", controller.for_env, "zero", episodes=8, seed=4, batch_size=8)
     pid = run_stress("StationStop-v0", _pid, "pid", episodes=8, seed=4, batch_size=8)
     np.testing.assert_array_equal(residual.metric, pid.metric)
@@ -141,7 +170,13 @@ def test_residual_needs_its_set_up(tmp_path):
     from brakegym.agents.rl import train
 
     with pytest.raises(ConfigError, match="residual"):
-        train("ppo-residual", "StationStop-v0", tmp_path / "agent", hyperparameters=_tiny_hyperparameters(tmp_path), progress_bar=False)
+        train(
+            "ppo-residual",
+            "StationStop-v0",
+            tmp_path / "agent",
+            hyperparameters=_tiny_hyperparameters(tmp_path),
+            progress_bar=False,
+        )
 
 
 def test_shipped_residual_policy_stops_on_the_mark_with_lower_jerk_than_the_pid():

@@ -21,8 +21,13 @@ from brakegym.recordings import (
 )
 
 METADATA = dict(
-    vehicle="emu_8axle", load="empty", brake_mode="emergency", actuation="EP", instrumented_disc=1,
-    ambient_C=20.0, decel_source="accelerometer",
+    vehicle="emu_8axle",
+    load="empty",
+    brake_mode="emergency",
+    actuation="EP",
+    instrumented_disc=1,
+    ambient_C=20.0,
+    decel_source="accelerometer",
 )
 
 
@@ -66,7 +71,9 @@ def test_a_recording_with_three_faults_reports_all_three(tmp_path):
     assert "line 5, column 'speed_mps' = -0.5: speed must not be negative" in message
     assert "line 6, column 'p_c_bar_6' = 10.5: pressure outside 0..10 bar" in message
     assert [where(p) for p in info.value.problems] == [
-        (4, "time_s", None, 0.1), (5, "speed_mps", None, -0.5), (6, "p_c_bar_6", None, 10.5)
+        (4, "time_s", None, 0.1),
+        (5, "speed_mps", None, -0.5),
+        (6, "p_c_bar_6", None, 10.5),
     ]
     assert {p.file for p in info.value.problems} == {str(path)} and info.value.file == str(path)
 
@@ -85,7 +92,9 @@ def test_faults_in_both_files_are_reported_together(tmp_path):
     ]
     json_path = str(path.with_suffix(".json"))
     assert [(p.file, p.field, p.value) for p in problems[2:]] == [
-        (json_path, "load", "heavy"), (json_path, "brake_mode", "parking"), (json_path, "actuation", "XX")
+        (json_path, "load", "heavy"),
+        (json_path, "brake_mode", "parking"),
+        (json_path, "actuation", "XX"),
     ]
     assert f"{json_path}: field 'actuation' = 'XX': unknown actuation" in str(info.value)
     # A missing field is named as missing; the vehicle's own checks wait for a valid vehicle.
@@ -122,7 +131,9 @@ def test_layout_faults_are_each_reported_and_the_other_lines_still_checked(tmp_p
     with pytest.raises(RecordingError) as info:
         read_recording(path)
     assert [where(p) for p in info.value.problems] == [
-        (7, None, None, None), (3, None, None, 13), (8, "p_c_bar_1", None, 11.0)
+        (7, None, None, None),
+        (3, None, None, 13),
+        (8, "p_c_bar_1", None, 11.0),
     ]
     assert "line 3 has 13 fields, the header has 12; also on line 5" in str(info.value)
 
@@ -136,7 +147,9 @@ def test_a_recording_built_in_code_reports_every_problem():
     with pytest.raises(RecordingError) as info:
         Recording("run", metadata, frame)
     assert [where(p) for p in info.value.problems] == [
-        (None, "p_c_bar_2", None, None), (4, "decel_mps2", None, np.inf), (5, "T_disc_C", None, -300.0),
+        (None, "p_c_bar_2", None, None),
+        (4, "decel_mps2", None, np.inf),
+        (5, "T_disc_C", None, -300.0),
         (None, "decel_mps2", "decel_source", None),
     ]
     assert str(info.value).startswith("recording 'run': 4 problems")

@@ -31,7 +31,21 @@ def test_dyno_all_cases(tmp_path, capsys):
 
 def test_simulate_json(tmp_path):
     out = tmp_path / "stop.json"
-    args = ["simulate", "--vehicle", "emu_8axle", "--load", "empty", "--mode", "emergency", "--actuation", "EP", "--v0", "120", "--json", str(out)]
+    args = [
+        "simulate",
+        "--vehicle",
+        "emu_8axle",
+        "--load",
+        "empty",
+        "--mode",
+        "emergency",
+        "--actuation",
+        "EP",
+        "--v0",
+        "120",
+        "--json",
+        str(out),
+    ]
     assert main(args) == 0
     data = json.loads(out.read_text())
     assert data["stop_distance_m"] == pytest.approx(589.3, rel=0.005)
@@ -50,7 +64,9 @@ def test_simulate_with_scatter_is_seeded(tmp_path):
 def test_mcs_field_json_and_figures(tmp_path):
     out = tmp_path / "field.json"
     figures = tmp_path / "fig"
-    result = run_cli("mcs", "--campaign", "field", "--setup", "ds", "--seed", "1", "--json", str(out), "--figures", str(figures))
+    result = run_cli(
+        "mcs", "--campaign", "field", "--setup", "ds", "--seed", "1", "--json", str(out), "--figures", str(figures)
+    )
     assert result.returncode == 0, result.stderr
     data = json.loads(out.read_text())
     assert data["applications"] == 4400 and data["setup"] == "ds"
@@ -67,7 +83,10 @@ def test_mcs_field_json_and_figures(tmp_path):
         (["simulate", "--v0", "120", "--load", "crush"], "unknown load 'crush'"),
         (["simulate", "--v0", "120", "--mode", "parking"], "unknown brake mode 'parking'"),
         (["simulate", "--v0", "120", "--actuation", "XX"], "unknown pneumatic 'XX'"),
-        (["simulate", "--v0", "120", "--step", "0.15"], "dead time 0.2 s is not a whole number of time steps of 0.15 s"),
+        (
+            ["simulate", "--v0", "120", "--step", "0.15"],
+            "dead time 0.2 s is not a whole number of time steps of 0.15 s",
+        ),
         (["simulate", "--v0", "120", "--command-time", "-1"], "--command-time must be a non-negative"),
         (["mcs", "--campaign", "dyno", "--setup", "mcs-50"], "unknown setup 'mcs-50'"),
         (["mcs", "--campaign", "train"], "invalid choice: 'train'"),
@@ -94,7 +113,9 @@ def test_bad_config_file_exit_2(tmp_path, monkeypatch):
     path.write_text(path.read_text().replace("time_constant_s: 0.8", "time_constant_s: -0.8"))
     result = subprocess.run(
         [sys.executable, "-m", "brakegym", "simulate", "--v0", "100"],
-        capture_output=True, text=True, env={**__import__("os").environ, "BRAKEGYM_CONFIG_PATH": str(configs)},
+        capture_output=True,
+        text=True,
+        env={**__import__("os").environ, "BRAKEGYM_CONFIG_PATH": str(configs)},
     )
     assert result.returncode == 2
     assert str(path) in result.stderr and "time_constant_s" in result.stderr and "-0.8" in result.stderr

@@ -1,6 +1,7 @@
 """``brakegym diagnose`` run blind on synthetic sets: it names a concealed gradient and recovers
 its size, names a friction level (or reports it indistinguishable from its confounders), and
-names an adhesion limit and recovers it, selects nothing on effect-free sets, also when the base model is moved within its scatter.
+names an adhesion limit and recovers it, selects nothing on effect-free sets, also when the base
+model is moved within its scatter.
 
 Sets are small (5-6 recordings) and only the best two screened effects are fitted in full, to
 keep the run short; the benchmark (``benchmarks/bench_diagnosis.py``) uses the defaults.
@@ -14,9 +15,9 @@ import numpy as np
 import pytest
 
 from brakegym.cli import main
-from brakegym.envs import BrakeEnv
 from brakegym.diagnosis import diagnose, write_effect_set
 from brakegym.effects import load_effects
+from brakegym.envs import BrakeEnv
 from brakegym.recordings.format import read_dataset
 from brakegym.recordings.synth import EffectRequest, synthesize
 
@@ -34,12 +35,17 @@ def test_names_a_gradient_and_recovers_its_size(tmp_path):
     # Seed 3 draws an accelerometer set: with deceleration differentiated from speed, a gradient
     # and a running-resistance offset act alike on every channel but through the train mass, and
     # six recordings do not always separate them (the report then names the other).
-    result = synthesize(tmp_path / "set", 6, seed=3, effects=[EffectRequest("gradient", {"gradient_permil": round(gradient, 2)})])
+    result = synthesize(
+        tmp_path / "set", 6, seed=3, effects=[EffectRequest("gradient", {"gradient_permil": round(gradient, 2)})]
+    )
     assert result.key["decel_source"] == "accelerometer"
     report = diagnose(result.folder, top_singles=3, pairs_from=2).report
     assert "gradient" in report["selected"], report["summary"]
     fitted = report["parameters"]["gradient_permil"]
-    assert abs(fitted - gradient) <= max(GRADIENT_TOLERANCE_PERMIL, GRADIENT_TOLERANCE_SHARE * abs(gradient)), (fitted, gradient)
+    assert abs(fitted - gradient) <= max(GRADIENT_TOLERANCE_PERMIL, GRADIENT_TOLERANCE_SHARE * abs(gradient)), (
+        fitted,
+        gradient,
+    )
     chosen = next(c for c in report["candidates"] if c["effects"] == report["selected"])
     # The held-out fit improves in speed, the channel a gradient acts on.
     assert chosen["heldout_rms_after"]["speed_mps"] < chosen["heldout_rms_before"]["speed_mps"]
@@ -57,9 +63,13 @@ def test_names_a_gradient_and_recovers_its_size(tmp_path):
 
 def test_names_a_friction_level_or_its_confounders(tmp_path):
     mu_scale = float(SIZES.uniform(0.78, 0.86))
-    folder = synthesize(tmp_path / "set", 6, seed=47, effects=[EffectRequest("friction_level", {"mu_scale": round(mu_scale, 3)})]).folder
+    folder = synthesize(
+        tmp_path / "set", 6, seed=47, effects=[EffectRequest("friction_level", {"mu_scale": round(mu_scale, 3)})]
+    ).folder
     report = diagnose(folder, top_singles=2, pairs_from=0).report
-    named = "friction_level" in report["selected"] or any("friction_level" in pair for pair in report["indistinguishable"])
+    named = "friction_level" in report["selected"] or any(
+        "friction_level" in pair for pair in report["indistinguishable"]
+    )
     assert named, (report["selected"], report["indistinguishable"], report["summary"])
     if report["selected"] == ["friction_level"]:
         assert report["parameters"]["mu_scale"] == pytest.approx(mu_scale, abs=0.05)
@@ -82,7 +92,12 @@ def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path):
     # The fade of a blind benchmark set (8 recordings; four stops get hot enough to show it). Its
     # held-out gain is large on those and nil on the others: the selection must weigh the
     # recordings it acts on, not all eight alike (before, t 1.5 < 2 and nothing was selected).
-    result = synthesize(tmp_path / "set", 8, seed=409715195, effects=[EffectRequest("thermal_fade", {"onset_C": 207.1, "loss_per_100K": 0.3896})])
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=409715195,
+        effects=[EffectRequest("thermal_fade", {"onset_C": 207.1, "loss_per_100K": 0.3896})],
+    )
     assert result.key["expected_selected"] == ["thermal_fade"]
     report = diagnose(result.folder, top_singles=1, pairs_from=0).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
@@ -98,7 +113,12 @@ def test_names_a_fade_whose_onset_lies_between_the_screening_grid_points(tmp_pat
     # 340, 513 degC) either fade every stop or none, and screening never ranked the fade; it is
     # screened from onsets below the measured peak now, and judged relevant by the friction it
     # takes at the hottest friction surface (a rule on the measured peak rejected the fit).
-    result = synthesize(tmp_path / "set", 8, seed=1910104468, effects=[EffectRequest("thermal_fade", {"onset_C": 224.4, "loss_per_100K": 0.3439})])
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=1910104468,
+        effects=[EffectRequest("thermal_fade", {"onset_C": 224.4, "loss_per_100K": 0.3439})],
+    )
     report = diagnose(result.folder, top_singles=1, pairs_from=0).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
     assert report["parameters"]["onset_C"] == pytest.approx(224.4, abs=10.0)
@@ -109,7 +129,12 @@ def test_held_out_predictions_of_a_fade_are_simulated_not_extrapolated(tmp_path)
     # Left out, each of the hot stops moves the fade's parameters far; the linear prediction of
     # one of them came out 17 % worse than no effect (paired t 1.97, nothing selected), its
     # simulation 9 % better.
-    result = synthesize(tmp_path / "set", 8, seed=724340878, effects=[EffectRequest("thermal_fade", {"onset_C": 194.0, "loss_per_100K": 0.2048})])
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=724340878,
+        effects=[EffectRequest("thermal_fade", {"onset_C": 194.0, "loss_per_100K": 0.2048})],
+    )
     report = diagnose(result.folder, top_singles=1, pairs_from=0).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
     fade = report["candidates"][0]
@@ -123,7 +148,12 @@ def test_a_fade_that_only_one_or_two_stops_reach_is_reported_unconfirmed(tmp_pat
     # Only the hottest two of eight stops reach the onset: the fade fits them far better (BIC lower
     # by about 4,900), but a paired t over two recordings shows no consistency, and one of them
     # gains nothing held out. Not selected; named unconfirmed, with the stops that would confirm it.
-    result = synthesize(tmp_path / "set", 8, seed=799579680, effects=[EffectRequest("thermal_fade", {"onset_C": 214.9, "loss_per_100K": 0.3864})])
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=799579680,
+        effects=[EffectRequest("thermal_fade", {"onset_C": 214.9, "loss_per_100K": 0.3864})],
+    )
     report = diagnose(result.folder, top_singles=1, pairs_from=0).report
     assert report["selected"] == [], report["summary"]
     [entry] = report["unconfirmed"]
@@ -167,7 +197,9 @@ def test_names_four_failed_brake_units(tmp_path):
     # Four of sixteen units fail: the unmodified fit's friction factors sink to about 0.75, and
     # screening must start the failure's nuisance from factors rescaled by the force it leaves
     # (from 0.75 it rated the true failure worse than no effect, in every such benchmark set).
-    result = synthesize(tmp_path / "set", 6, seed=67, effects=[EffectRequest("brake_unit_failure", {"failed_units": 4.0})])
+    result = synthesize(
+        tmp_path / "set", 6, seed=67, effects=[EffectRequest("brake_unit_failure", {"failed_units": 4.0})]
+    )
     report = diagnose(result.folder, top_singles=2, pairs_from=0).report
     assert report["selected"] == ["brake_unit_failure"], report["summary"]
     assert report["parameters"]["failed_units"] == 4.0
@@ -179,7 +211,9 @@ def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_
     # lower by 367, held-out error 8 % lower, paired t over the recordings 0.4) without a word on
     # the failure. Equally good held out, the two must be named indistinguishable, with what
     # would separate them.
-    result = synthesize(tmp_path / "set", 8, seed=272204246, effects=[EffectRequest("brake_unit_failure", {"failed_units": 2.0})])
+    result = synthesize(
+        tmp_path / "set", 8, seed=272204246, effects=[EffectRequest("brake_unit_failure", {"failed_units": 2.0})]
+    )
     report = diagnose(result.folder, top_singles=3, pairs_from=0).report
     named = set(report["selected"]) | {effect for pair in report["indistinguishable"] for effect in pair}
     assert "brake_unit_failure" in named, report["summary"]
@@ -194,7 +228,12 @@ def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_
 def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path):
     # Drying at 0.73 MJ: on a linear screening grid (1.7, 5.0, 8.3 MJ) the fit ended in a second
     # valley near 6.7 MJ with a loss of 0.38 (twice the truth's chi^2); the grid is geometric now.
-    result = synthesize(tmp_path / "set", 8, seed=562067968, effects=[EffectRequest("wet_pads", {"initial_loss": 0.2716, "drying_energy_MJ": 0.7277})])
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=562067968,
+        effects=[EffectRequest("wet_pads", {"initial_loss": 0.2716, "drying_energy_MJ": 0.7277})],
+    )
     report = diagnose(result.folder, top_singles=2, pairs_from=0).report
     assert report["selected"] == ["wet_pads"], report["summary"]
     assert report["parameters"]["initial_loss"] == pytest.approx(0.2716, abs=0.02)
@@ -212,11 +251,38 @@ def test_cli_on_an_effect_free_set_selects_nothing_and_writes_the_keys(tmp_path,
     folder = synthesize(tmp_path / "set", 5, seed=61).folder
     out = tmp_path / "report.json"
     effect_set = tmp_path / "diagnosed.yaml"
-    assert main(["diagnose", str(folder), "--json", str(out), "--report", str(tmp_path / "report"), "--top-singles", "2",
-                 "--pairs-from", "0", "--effects-out", str(effect_set)]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                str(folder),
+                "--json",
+                str(out),
+                "--report",
+                str(tmp_path / "report"),
+                "--top-singles",
+                "2",
+                "--pairs-from",
+                "0",
+                "--effects-out",
+                str(effect_set),
+            ]
+        )
+        == 0
+    )
     assert load_effects(effect_set) == []
     report = json.loads(out.read_text())
-    for key in ("recordings", "noise", "mismatch", "candidates", "selected", "parameters", "indistinguishable", "unexplained", "summary"):
+    for key in (
+        "recordings",
+        "noise",
+        "mismatch",
+        "candidates",
+        "selected",
+        "parameters",
+        "indistinguishable",
+        "unexplained",
+        "summary",
+    ):
         assert key in report
     assert set(report["noise"]) == {"speed_mps", "decel_mps2", "T_disc_C"}
     # The noise estimated from the recordings is the generator's (0.03 m/s, 1 K) within 15 %.
@@ -226,7 +292,16 @@ def test_cli_on_an_effect_free_set_selects_nothing_and_writes_the_keys(tmp_path,
     assert report["selected"] == [] and report["unexplained"] is None and report["unconfirmed"] == []
     assert not report["mismatch"]["significant"]
     for candidate in report["candidates"]:
-        assert {"effects", "parameters", "ci95", "rms_before", "rms_after", "heldout_rms_before", "heldout_rms_after", "delta_bic"} <= set(candidate)
+        assert {
+            "effects",
+            "parameters",
+            "ci95",
+            "rms_before",
+            "rms_after",
+            "heldout_rms_before",
+            "heldout_rms_after",
+            "delta_bic",
+        } <= set(candidate)
     assert (tmp_path / "report" / "report.md").is_file() and (tmp_path / "report" / "residuals.png").is_file()
     assert "selected: nothing" in capsys.readouterr().out
 

@@ -60,6 +60,8 @@ def test_every_module_has_its_api_section():
     import brakegym
 
     documented = "".join(page.read_text() for page in (DOCS / "api").glob("*.md"))
-    modules = ["brakegym"] + [m.name for m in pkgutil.walk_packages(brakegym.__path__, "brakegym.") if m.name != "brakegym.__main__"]
+    modules = ["brakegym"] + [
+        m.name for m in pkgutil.walk_packages(brakegym.__path__, "brakegym.") if m.name != "brakegym.__main__"
+    ]
     missing = [name for name in modules if f".. automodule:: {name}\n" not in documented]
     assert not missing

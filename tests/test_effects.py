@@ -2,7 +2,6 @@
 exactly what its law says, at a known state; bounds and configs are validated."""
 
 import shutil
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -11,11 +10,11 @@ import yaml
 
 from brakegym import config as cfg
 from brakegym.effects import EFFECTS, apply_effects, load_effects, make_effect
-from brakegym.units import STANDARD_GRAVITY_MPS2
-from brakegym.recordings.measurement import MeasurementModel
 from brakegym.plants import train_plant
+from brakegym.recordings.measurement import MeasurementModel
 from brakegym.recordings.replay import simulate_grid
 from brakegym.simulator import BatchConditions, PrescribedPressure
+from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 VEHICLE = cfg.load("vehicles", "emu_8axle")
@@ -62,7 +61,9 @@ def _initial_brake_force_N(effects, **kwargs):
 def _run(effects, pressure_bar=3.3, speed_mps=20.0, n=1, decel_source="accelerometer"):
     model = apply_effects(train_plant(VEHICLE), _conditions(n, speed_mps=speed_mps), effects)
     trace = np.full((2, n, VEHICLE.n_axles), pressure_bar)
-    grid = simulate_grid(model, PrescribedPressure(np.array([0.0, 1.0]), trace, STEP_S), STEP_S, lambda sim: not sim.moving.any())
+    grid = simulate_grid(
+        model, PrescribedPressure(np.array([0.0, 1.0]), trace, STEP_S), STEP_S, lambda sim: not sim.moving.any()
+    )
     return model, grid, [MeasurementModel(grid, b, model, decel_source, 1) for b in range(n)]
 
 
@@ -78,9 +79,13 @@ def test_gradient_is_in_the_speed_signal_and_not_in_the_accelerometer():
     assert slope.decel_mps2[0, 0] - flat.decel_mps2[0, 0] == pytest.approx(extra, rel=1e-12)
     # ... which a speed-derived deceleration sees and the accelerometer does not.
     t0 = np.array([0.0])
-    assert slope_accel.channels(t0)["decel_mps2"][0] == pytest.approx(flat_accel.channels(t0)["decel_mps2"][0], rel=1e-12)
+    assert slope_accel.channels(t0)["decel_mps2"][0] == pytest.approx(
+        flat_accel.channels(t0)["decel_mps2"][0], rel=1e-12
+    )
     slope_speed = MeasurementModel(slope, 0, slope_model, "speed", 1)
-    assert slope_speed.channels(t0)["decel_mps2"][0] - flat_accel.channels(t0)["decel_mps2"][0] == pytest.approx(extra, rel=1e-9)
+    assert slope_speed.channels(t0)["decel_mps2"][0] - flat_accel.channels(t0)["decel_mps2"][0] == pytest.approx(
+        extra, rel=1e-9
+    )
     # Uphill the train stops sooner.
     assert slope.stop_time_s[0] < flat.stop_time_s[0]
 
@@ -100,7 +105,9 @@ def test_rotating_mass_keeps_gravity_on_the_true_mass():
 
 def test_friction_level_scales_the_brake_force():
     nominal = _initial_brake_force_N([])
-    assert _initial_brake_force_N([make_effect("friction_level", mu_scale=0.85)]) == pytest.approx(0.85 * nominal, rel=1e-12)
+    assert _initial_brake_force_N([make_effect("friction_level", mu_scale=0.85)]) == pytest.approx(
+        0.85 * nominal, rel=1e-12
+    )
 
 
 def test_wet_pads_lose_friction_at_first_and_dry_with_heat():
@@ -139,7 +146,9 @@ def test_thermal_fade_above_onset_only():
     assert _initial_brake_force_N([fade], temperature_C=400.0) == pytest.approx(
         0.64 * _initial_brake_force_N([], temperature_C=400.0), rel=1e-12
     )
-    assert _initial_brake_force_N([fade], temperature_C=190.0) == pytest.approx(_initial_brake_force_N([], temperature_C=190.0), rel=1e-12)
+    assert _initial_brake_force_N([fade], temperature_C=190.0) == pytest.approx(
+        _initial_brake_force_N([], temperature_C=190.0), rel=1e-12
+    )
 
 
 def test_brake_unit_failure_silences_the_last_units():
@@ -233,14 +242,23 @@ def test_effect_set_from_yaml_runs_in_the_simulator():
     assert gradient["gradient_permil"] == -5.8
     downhill = _run([gradient])[1].stop_time_s[0]
     assert downhill > _run([])[1].stop_time_s[0]
-    assert [e.id for e in load_effects(REPO_CONFIGS / "effects" / "example_wet_pads_heavy_train.yaml")] == ["wet_pads", "rotating_mass"]
+    assert [e.id for e in load_effects(REPO_CONFIGS / "effects" / "example_wet_pads_heavy_train.yaml")] == [
+        "wet_pads",
+        "rotating_mass",
+    ]
 
 
 @pytest.mark.parametrize(
     "effects, message",
     [
-        ([{"id": "gradient", "parameters": {"gradient_permil": 99}}], r"field 'effects\.0' .*'gradient_permil' = 99 permil lies outside"),
-        ([{"id": "gradient", "paramters": {"gradient_permil": 1}}], r"field 'effects\.0\.paramters' = .*Extra inputs are not permitted"),
+        (
+            [{"id": "gradient", "parameters": {"gradient_permil": 99}}],
+            r"field 'effects\.0' .*'gradient_permil' = 99 permil lies outside",
+        ),
+        (
+            [{"id": "gradient", "paramters": {"gradient_permil": 1}}],
+            r"field 'effects\.0\.paramters' = .*Extra inputs are not permitted",
+        ),
         ([{"id": "gradient", "parameters": {"gradient_permil": 1}}] * 2, r"\['gradient'\] appear more than once"),
     ],
 )

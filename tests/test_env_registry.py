@@ -43,7 +43,9 @@ class CoastDown(BrakeTask):
 
 def test_every_shipped_environment_is_registered_from_its_module():
     names = sorted(cls.name for cls in registry.task_classes().values())
-    modules = sorted(path.stem for path in Path(brakegym.envs.tasks.__file__).parent.glob("*.py") if path.stem != "__init__")
+    modules = sorted(
+        path.stem for path in Path(brakegym.envs.tasks.__file__).parent.glob("*.py") if path.stem != "__init__"
+    )
     assert names == modules
     assert all(env_id in gym.registry for env_id in registry.task_classes())
 

@@ -15,7 +15,9 @@ from brakegym.config import ConfigError
 from brakegym.envs import BrakeEnv, BrakeVectorEnv
 
 ENV_IDS = ["brakegym/StationStop-v0", "brakegym/DecelTracking-v0", "brakegym/EmergencyStop-v0"]
-QUIET = {"sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}}
+QUIET = {
+    "sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}
+}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -131,7 +133,13 @@ def test_random_actions_never_produce_nan(task):
 
 def test_vector_env_matches_single_env_physics():
     """Without noise or scatter, a batch of trains and one train see the same physics."""
-    options = {"initial_speed_kmh": 80.0, "load": "normal", "setup": "ds", "initial_disc_temperature_C": 60.0, "distance_to_mark_m": 400.0}
+    options = {
+        "initial_speed_kmh": 80.0,
+        "load": "normal",
+        "setup": "ds",
+        "initial_disc_temperature_C": 60.0,
+        "distance_to_mark_m": 400.0,
+    }
     single = BrakeEnv("station_stop", config=QUIET)
     single.reset(seed=0, options=options)
     vector = BrakeVectorEnv("station_stop", num_envs=5, config=QUIET)
@@ -152,7 +160,16 @@ def test_make_vec_uses_the_native_vector_env():
 
 def test_autoreset_same_step_reports_final_observation():
     env = BrakeVectorEnv("station_stop", num_envs=3, config=QUIET)
-    env.reset(seed=0, options={"initial_speed_kmh": 20.0, "distance_to_mark_m": 50.0, "setup": "ds", "load": "max", "initial_disc_temperature_C": 50.0})
+    env.reset(
+        seed=0,
+        options={
+            "initial_speed_kmh": 20.0,
+            "distance_to_mark_m": 50.0,
+            "setup": "ds",
+            "load": "max",
+            "initial_disc_temperature_C": 50.0,
+        },
+    )
     for _ in range(1000):
         observation, _, terminated, truncated, info = env.step(np.ones((3, 4), np.float32))
         if (terminated | truncated).any():
@@ -290,7 +307,6 @@ def test_reset_trains_equals_a_fresh_simulator():
     """Restarting some trains of a running batch gives them exactly the run of a fresh batch."""
     from brakegym import config as cfg
     from brakegym.plants import brake_cylinder, train_plant
-    from brakegym.physics import BrakeCylinder
     from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
 
     vehicle = cfg.load("vehicles", "emu_8axle")
@@ -300,11 +316,15 @@ def test_reset_trains_equals_a_fresh_simulator():
     def conditions(n):
         shape = (n, *plant.disc_shape)
         return BatchConditions(
-            mass_kg=rng.uniform(1.2e5, 1.5e5, n), initial_speed_mps=rng.uniform(10, 40, n),
-            initial_mu=rng.uniform(0.33, 0.37, shape), power_coefficient_per_s=rng.uniform(0.003, 0.005, shape),
-            running_resistance_A_N=rng.uniform(1000, 4000, n), initial_friction_temperature_K=rng.uniform(300, 400, shape),
-            initial_disc_temperature_K=rng.uniform(300, 400, shape), ambient_temperature_K=np.full(n, 293.15),
-        )  # fmt: skip
+            mass_kg=rng.uniform(1.2e5, 1.5e5, n),
+            initial_speed_mps=rng.uniform(10, 40, n),
+            initial_mu=rng.uniform(0.33, 0.37, shape),
+            power_coefficient_per_s=rng.uniform(0.003, 0.005, shape),
+            running_resistance_A_N=rng.uniform(1000, 4000, n),
+            initial_friction_temperature_K=rng.uniform(300, 400, shape),
+            initial_disc_temperature_K=rng.uniform(300, 400, shape),
+            ambient_temperature_K=np.full(n, 293.15),
+        )
 
     cylinder = brake_cylinder(cfg.load("pneumatics", "EP"))
     running = Simulator(plant, conditions(4), CommandedPressure([cylinder] * 4, 8, 0.05), step_s=0.05)
@@ -330,8 +350,8 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
     import dataclasses
 
     from brakegym import config as cfg
-    from brakegym.plants import brake_cylinder, train_plant
     from brakegym.physics import BrakeCylinder, RunningResistanceLaw
+    from brakegym.plants import train_plant
     from brakegym.simulator import BatchConditions, CommandedPressure, NumpyReferenceSimulator, Simulator
 
     base = train_plant(cfg.load("vehicles", "emu_8axle"))
@@ -341,11 +361,15 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
     def run(plant, index, simulator=Simulator):
         shape = (len(index), *plant.disc_shape)
         conditions = BatchConditions(
-            mass_kg=np.full(len(index), 1.2e5), initial_speed_mps=np.full(len(index), 30.0),
-            initial_mu=np.full(shape, 0.35), power_coefficient_per_s=np.full(shape, 0.004),
-            running_resistance_A_N=np.full(len(index), 2500.0), initial_friction_temperature_K=np.full(shape, 300.0),
-            initial_disc_temperature_K=np.full(shape, 300.0), ambient_temperature_K=np.full(len(index), 293.15),
-        )  # fmt: skip
+            mass_kg=np.full(len(index), 1.2e5),
+            initial_speed_mps=np.full(len(index), 30.0),
+            initial_mu=np.full(shape, 0.35),
+            power_coefficient_per_s=np.full(shape, 0.004),
+            running_resistance_A_N=np.full(len(index), 2500.0),
+            initial_friction_temperature_K=np.full(shape, 300.0),
+            initial_disc_temperature_K=np.full(shape, 300.0),
+            ambient_temperature_K=np.full(len(index), 293.15),
+        )
         pressure = CommandedPressure([BrakeCylinder(0.2, 0.8)] * len(index), plant.n_axles, 0.1)
         pressure.set_command(np.full((len(index), plant.n_axles), 2.0))
         sim = simulator(plant, conditions, pressure, step_s=0.1)
@@ -353,10 +377,14 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
             sim.step()
         return sim
 
-    batch_plant = dataclasses.replace(base, running_resistance=RunningResistanceLaw(A_N=2500.0, B_N_per_mps=B, C_N_per_mps2=C))
+    batch_plant = dataclasses.replace(
+        base, running_resistance=RunningResistanceLaw(A_N=2500.0, B_N_per_mps=B, C_N_per_mps2=C)
+    )
     batch = run(batch_plant, np.arange(n))
     for i in range(n):
-        alone_plant = dataclasses.replace(base, running_resistance=RunningResistanceLaw(2500.0, float(B[i]), float(C[i])))
+        alone_plant = dataclasses.replace(
+            base, running_resistance=RunningResistanceLaw(2500.0, float(B[i]), float(C[i]))
+        )
         alone = run(alone_plant, [i])
         np.testing.assert_array_equal(batch.train[:, i], alone.train[:, 0])
         np.testing.assert_array_equal(batch.disc[..., i], alone.disc[..., 0])
@@ -372,7 +400,9 @@ def test_per_train_resistance_B_and_C_equal_trains_simulated_alone():
 # ------------------------------------------------------------------------------------------------
 # Effect sets: the model a diagnosis found (or any effect set), in the environments
 
-QUIET = {"sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}}
+QUIET = {
+    "sensor_noise": {"speed_mps": 0.0, "decel_mps2": 0.0, "pressure_bar": 0.0, "temperature_C": 0.0, "distance_m": 0.0}
+}
 G = 9.80665
 
 
@@ -417,7 +447,9 @@ def test_sensor_effects_act_on_the_observation_only(tmp_path):
     config = {**QUIET, "effects": effects, "observed_temperatures": "instrumented"}
     env, nominal = BrakeEnv("station_stop", config=config), BrakeEnv("station_stop", config=QUIET)
     names = env.unwrapped.observation_names
-    speed, decel, to_go, temperature = (names.index(n) for n in ("speed_mps", "decel_mps2", "distance_to_go_m", "temperature_C_1"))
+    speed, decel, to_go, temperature = (
+        names.index(n) for n in ("speed_mps", "decel_mps2", "distance_to_go_m", "temperature_C_1")
+    )
     for e in (env, nominal):
         e.reset(seed=5, options={"initial_speed_kmh": 80.0})
     brake = np.full(env.action_space.shape, 0.5, np.float32)

@@ -69,7 +69,9 @@ def test_train_series_and_stop(golden_dir):
     golden = pd.read_csv(golden_dir / "train_V0120_empty_emergency_EP_series.csv")
     vehicle = cfg.load("vehicles", "emu_8axle")
     app = TrainApplication(load="empty", brake_mode="emergency", actuation="EP", initial_speed_kmh=120.0)
-    summary = train_stops(vehicle, [app], record_every=int(round(1.0 / DEFAULT_STEP_S)), until_time_s=golden.t_s.max() + 2.0)
+    summary = train_stops(
+        vehicle, [app], record_every=int(round(1.0 / DEFAULT_STEP_S)), until_time_s=golden.t_s.max() + 2.0
+    )
     traj = summary.trajectory
     _check_series(
         golden,

@@ -31,8 +31,7 @@ from brakegym.identification import (
     write_dyno_curves,
 )
 from brakegym.identification.stochastic import dyno_spread_groups, field_spread_groups, identify_scatter
-from brakegym.physics import draw_friction
-from brakegym.physics import draw_running_resistance
+from brakegym.physics import draw_friction, draw_running_resistance
 from brakegym.plants import scatter_partition, stochastic_friction
 
 REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -159,7 +158,13 @@ def dyno_applications_table() -> pd.DataFrame:
     """The full dyno campaign's 1950 single-disc stops (MCS-100) with the true scatter."""
     material = MATERIAL.model_copy(update={"scatter": TRUE_SCATTER})
     cases = [case for case, _ in campaigns.dyno_applications(RIG)]
-    draw = draw_friction(np.random.default_rng(11), stochastic_friction(material), scatter_partition(cfg.load("setups", "mcs-100")), len(cases), (1, 1))
+    draw = draw_friction(
+        np.random.default_rng(11),
+        stochastic_friction(material),
+        scatter_partition(cfg.load("setups", "mcs-100")),
+        len(cases),
+        (1, 1),
+    )
     summary = dyno_stops(RIG, cases, draw)
     return pd.DataFrame({"load_case": [c.name for c in cases], "mu_s": summary.mu_s[:, 0]})
 
@@ -173,12 +178,22 @@ def train_applications_table() -> pd.DataFrame:
     apps = [TrainApplication("empty", "emergency", "EP", v0) for v0 in (100.0, 160.0) for _ in range(60)]
     rng = np.random.default_rng(12)
     partition = scatter_partition(setup)
-    draw = draw_friction(rng, stochastic_friction(material), partition, len(apps), (vehicle.n_axles, vehicle.discs_per_axle))
-    resistance = draw_running_resistance(rng, vehicle.running_resistance.A_N, vehicle.running_resistance.A_sigma_N, partition, len(apps))
+    draw = draw_friction(
+        rng, stochastic_friction(material), partition, len(apps), (vehicle.n_axles, vehicle.discs_per_axle)
+    )
+    resistance = draw_running_resistance(
+        rng, vehicle.running_resistance.A_N, vehicle.running_resistance.A_sigma_N, partition, len(apps)
+    )
     summary = train_stops(vehicle, apps, draw, resistance)
     return pd.DataFrame(
-        {"brake_mode": "emergency", "load": "empty", "pad_set": "1", "actuation": "EP",
-         "v0_kmh": [a.initial_speed_kmh for a in apps], "mu_s_eff": summary.mu_s_eff}
+        {
+            "brake_mode": "emergency",
+            "load": "empty",
+            "pad_set": "1",
+            "actuation": "EP",
+            "v0_kmh": [a.initial_speed_kmh for a in apps],
+            "mu_s_eff": summary.mu_s_eff,
+        }
     )
 
 
@@ -207,7 +222,9 @@ def test_split_needs_single_and_multi_disc_data(dyno_applications_table, train_a
 
     train_only = identify_scatter(train_groups, FAST)
     assert "global_fraction" in train_only.not_identifiable
-    assert any("single-disc" in r for r in next(p for p in train_only.parameters if p.name == "global_fraction").reasons)
+    assert any(
+        "single-disc" in r for r in next(p for p in train_only.parameters if p.name == "global_fraction").reasons
+    )
 
     free_dyno = dyno_spread_groups(dyno_applications_table.iloc[::4], RIG, global_fraction=None, settings=FAST)
     dyno_only = identify_scatter(free_dyno, FAST)
@@ -227,7 +244,9 @@ def test_cli_parameters_and_scatter(tmp_path, monkeypatch, capsys, dyno_applicat
     data = json.loads(out.read_text())
     assert data["parameters"][0]["symbol"] == "a"
     assert data["parameters"][0]["estimate"] == pytest.approx(0.0088, rel=0.05)
-    assert {"correlation", "channels", "not_identifiable", "weak_combinations", "normalised_singular_values"} <= set(data)
+    assert {"correlation", "channels", "not_identifiable", "weak_combinations", "normalised_singular_values"} <= set(
+        data
+    )
     assert "95 % interval" in capsys.readouterr().out
 
     table = tmp_path / "dyno.csv"
@@ -244,7 +263,10 @@ def test_cli_parameters_and_scatter(tmp_path, monkeypatch, capsys, dyno_applicat
         (["identify", "parameters", "--dyno-curves", "{curves}", "--parameters", "a,q"], "unknown parameter 'q'"),
         (["identify", "parameters", "--dyno-curves", "{missing}"], "cannot read dyno curves"),
         (["identify", "parameters", "--dyno-curves", "{bad}"], "line 3, column mu"),
-        (["identify", "parameters", "--dyno-curves", "{curves}", "--config", "nope"], "unknown identification config 'nope'"),
+        (
+            ["identify", "parameters", "--dyno-curves", "{curves}", "--config", "nope"],
+            "unknown identification config 'nope'",
+        ),
         (["identify", "scatter"], "give --dyno-csv and/or --field-csv"),
         (["identify", "scatter", "--dyno-csv", "{curves}"], "missing column(s) ['mu_s']"),
     ],

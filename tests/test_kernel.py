@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 
 from brakegym import config as cfg
-from brakegym.simulator import kernel, kernel_math
 from brakegym.applications import TrainApplication, train_stops
 from brakegym.campaigns import field_applications, train_monte_carlo
 from brakegym.physics import BrakeCylinder, FrictionDraw, draw_friction
-from brakegym.plants import dynamometer_plant, scatter_partition, stochastic_friction, train_plant
 from brakegym.physics.elementary import fractional_power
+from brakegym.plants import dynamometer_plant, scatter_partition, stochastic_friction, train_plant
 from brakegym.simulator import (
     DISC_STATES,
     TRAIN_STATES,
@@ -22,6 +21,8 @@ from brakegym.simulator import (
     NumpyReferenceSimulator,
     PrescribedPressure,
     Simulator,
+    kernel,
+    kernel_math,
 )
 
 
@@ -197,9 +198,18 @@ def test_stage_rates_match_the_numpy_reference_on_random_states(plant, with_hook
     scale, extra = compiled.hooks_at(context)
     disc_rates, train_rates = np.empty_like(reference.disc), np.empty_like(reference.train)
     kernel.stage_rates(
-        compiled.plant_parameters, reference.disc, reference.train, reference.moving, pressure_bar, scale, extra,
-        compiled.power_coefficient, compiled.train_constants, disc_rates, train_rates,
-    )  # fmt: skip
+        compiled.plant_parameters,
+        reference.disc,
+        reference.train,
+        reference.moving,
+        pressure_bar,
+        scale,
+        extra,
+        compiled.power_coefficient,
+        compiled.train_constants,
+        disc_rates,
+        train_rates,
+    )
     # 1e-12 relative to the size of each quantity over the batch (a rate that is a small
     # difference of large heat flows is compared at the scale of those flows).
     for names, got, expected in ((DISC_STATES, disc_rates, expected_disc), (TRAIN_STATES, train_rates, expected_train)):
@@ -217,7 +227,9 @@ def test_deceleration_matches_the_numpy_reference(plant, constant):
     cylinders = [BrakeCylinder(0.2, 0.8)] * n
     pressure = CommandedPressure(cylinders, plant.n_axles, 0.1, initial_pressure_bar=rng.uniform(0, 4.5, (n, 8)))
     force_class, scale_class = (_ConstantForce, _ConstantScale) if constant else (_ArrayForce, _ArrayScale)
-    hooks = dict(extra_forces=[force_class(rng.normal(0.0, 5e3, n))], friction_modifiers=[scale_class(rng.uniform(0.7, 1.2, n))])
+    hooks = dict(
+        extra_forces=[force_class(rng.normal(0.0, 5e3, n))], friction_modifiers=[scale_class(rng.uniform(0.7, 1.2, n))]
+    )
     reference = NumpyReferenceSimulator(plant, conditions, pressure, 0.1, **hooks)
     compiled = Simulator(plant, conditions, pressure, 0.1, **hooks)
     np.testing.assert_allclose(compiled.deceleration_mps2(), reference.deceleration_mps2(), rtol=1e-13)
@@ -232,12 +244,18 @@ def _mixed_applications():
         ("normal", "emergency", "PN", 100.0),
         ("empty", "service", "EP", 140.0),
     ]
-    return [TrainApplication(load=l, brake_mode=m, actuation=a, initial_speed_kmh=v) for l, m, a, v in cases * 5]
+    return [TrainApplication(load=load, brake_mode=m, actuation=a, initial_speed_kmh=v) for load, m, a, v in cases * 5]
 
 
 def _scatter_draw(vehicle, plant, n, seed):
     material = cfg.load("materials", vehicle.material)
-    return draw_friction(np.random.default_rng(seed), stochastic_friction(material), scatter_partition(cfg.load("setups", "mcs-75-25")), n, plant.disc_shape)
+    return draw_friction(
+        np.random.default_rng(seed),
+        stochastic_friction(material),
+        scatter_partition(cfg.load("setups", "mcs-75-25")),
+        n,
+        plant.disc_shape,
+    )
 
 
 SUMMARY_FIELDS = (
@@ -287,7 +305,9 @@ def test_constant_hooks_run_compiled_and_agree_with_the_staged_path(vehicle, pla
     rng = np.random.default_rng(3)
     scale = rng.uniform(0.8, 1.2, (n,))
     force_N = rng.uniform(-8000.0, 8000.0, (n,))
-    staged = train_stops(vehicle, apps, draw=draw, friction_modifiers=[_ArrayScale(scale)], extra_forces=[_ArrayForce(force_N)])
+    staged = train_stops(
+        vehicle, apps, draw=draw, friction_modifiers=[_ArrayScale(scale)], extra_forces=[_ArrayForce(force_N)]
+    )
     compiled = train_stops(
         vehicle, apps, draw=draw, friction_modifiers=[_ConstantScale(scale)], extra_forces=[_ConstantForce(force_N)]
     )
@@ -387,7 +407,11 @@ def test_trajectory_in_one_call_is_step_by_step_bit_for_bit(plant, source):
             pressure.set_command(np.full((n, plant.n_axles), 3.8))
             return pressure
         knots = np.linspace(0.0, n_steps * step_s, 37)  # not on the half steps
-        trace = np.clip(np.linspace(0.0, 4.5, len(knots))[:, None, None] + rng.normal(0, 0.2, (len(knots), n, plant.n_axles)), 0, None)
+        trace = np.clip(
+            np.linspace(0.0, 4.5, len(knots))[:, None, None] + rng.normal(0, 0.2, (len(knots), n, plant.n_axles)),
+            0,
+            None,
+        )
         return PrescribedPressure(knots, trace, step_s)
 
     batch = _random_batch(plant, n, np.random.default_rng(6))
@@ -492,8 +516,13 @@ def test_replaced_constant_hooks_take_effect(plant):
     np.testing.assert_allclose(after - before, (second - first) / conditions.mass_kg, rtol=1e-9)
     state = sim.train.copy()
     sim.step()  # the step integrates the new force too: compare with a simulator built with it
-    fresh = Simulator(plant, conditions, CommandedPressure([BrakeCylinder(0.2, 0.8)] * 3, plant.n_axles, 0.1), 0.1,
-                      extra_forces=(_ConstantForce(first),))
+    fresh = Simulator(
+        plant,
+        conditions,
+        CommandedPressure([BrakeCylinder(0.2, 0.8)] * 3, plant.n_axles, 0.1),
+        0.1,
+        extra_forces=(_ConstantForce(first),),
+    )
     fresh.step()
     fresh.extra_forces = (_ConstantForce(second),)
     np.testing.assert_array_equal(fresh.train, state)

@@ -10,8 +10,8 @@ from brakegym import config as cfg
 from brakegym.applications import TrainApplication, train_stops
 from brakegym.physics import BrakeCylinder
 from brakegym.plants import caliper_law, dynamometer_plant, friction_law, thermal_model, train_plant
-from brakegym.units import ZERO_CELSIUS_K
 from brakegym.simulator import BatchConditions, CommandedPressure, Simulator
+from brakegym.units import ZERO_CELSIUS_K
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,6 @@
 and replay of recordings made by the simulator itself."""
 
 import json
-import shutil
 import warnings
 from pathlib import Path
 
@@ -10,6 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import brakegym.recordings.replay as replay_module
+from brakegym.effects import FrictionLevel, Gradient, make_effect
 from brakegym.recordings import (
     Recording,
     RecordingError,
@@ -19,8 +20,6 @@ from brakegym.recordings import (
     write_recording,
 )
 from brakegym.recordings.measurement import first_order_lag
-import brakegym.recordings.replay as replay_module
-from brakegym.effects import FrictionLevel, Gradient, make_effect
 from brakegym.recordings.replay import compare, kinematic_consistency, replay, replay_batch, simulate_grid
 from brakegym.recordings.synth import EffectRequest, synthesize
 
@@ -29,8 +28,14 @@ N_AXLES = 8
 
 def _metadata(**changes):
     fields = dict(
-        vehicle="emu_8axle", load="empty", brake_mode="emergency", actuation="EP", instrumented_disc=1,
-        ambient_C=20.0, decel_source="accelerometer", pad_set="1",
+        vehicle="emu_8axle",
+        load="empty",
+        brake_mode="emergency",
+        actuation="EP",
+        instrumented_disc=1,
+        ambient_C=20.0,
+        decel_source="accelerometer",
+        pad_set="1",
     )
     fields.update(changes)
     return fields
@@ -102,12 +107,30 @@ def test_inline_vehicle_object_is_validated(tmp_path):
 @pytest.mark.parametrize(
     "edit, message",
     [
-        (lambda lines: [lines[0].replace("speed_mps", "v")] + lines[1:], r"missing required column\(s\) \['speed_mps'\]"),
-        (lambda lines: lines[:4] + [lines[4].replace("3.3", "abc", 1)] + lines[5:], r"line 5, column 'p_c_bar_1': 'abc' is not a finite number"),
-        (lambda lines: lines[:3] + [lines[3].replace("3.3", "nan", 1)] + lines[4:], r"line 4, column 'p_c_bar_1': 'nan'"),
-        (lambda lines: lines[:3] + ["0.1" + lines[3][lines[3].index(","):]] + lines[4:], r"line 4, column 'time_s' = 0\.1: time must be strictly increasing \(line 3"),
-        (lambda lines: lines[:2] + ["0.1,-0.5" + lines[2][lines[2].index(",", 4):]] + lines[3:], r"line 3, column 'speed_mps' = -0\.5: speed must not be negative"),
-        (lambda lines: lines[:6] + [lines[6].replace("3.3", "10.5", 1)] + lines[7:], r"line 7, column 'p_c_bar_1' = 10\.5: pressure outside 0\.\.10 bar"),
+        (
+            lambda lines: [lines[0].replace("speed_mps", "v")] + lines[1:],
+            r"missing required column\(s\) \['speed_mps'\]",
+        ),
+        (
+            lambda lines: lines[:4] + [lines[4].replace("3.3", "abc", 1)] + lines[5:],
+            r"line 5, column 'p_c_bar_1': 'abc' is not a finite number",
+        ),
+        (
+            lambda lines: lines[:3] + [lines[3].replace("3.3", "nan", 1)] + lines[4:],
+            r"line 4, column 'p_c_bar_1': 'nan'",
+        ),
+        (
+            lambda lines: lines[:3] + ["0.1" + lines[3][lines[3].index(",") :]] + lines[4:],
+            r"line 4, column 'time_s' = 0\.1: time must be strictly increasing \(line 3",
+        ),
+        (
+            lambda lines: lines[:2] + ["0.1,-0.5" + lines[2][lines[2].index(",", 4) :]] + lines[3:],
+            r"line 3, column 'speed_mps' = -0\.5: speed must not be negative",
+        ),
+        (
+            lambda lines: lines[:6] + [lines[6].replace("3.3", "10.5", 1)] + lines[7:],
+            r"line 7, column 'p_c_bar_1' = 10\.5: pressure outside 0\.\.10 bar",
+        ),
         (lambda lines: lines[:2] + [lines[2] + ",1"] + lines[3:], r"line 3 has 14 fields, the header has 13"),
         (lambda lines: lines[:3] + [""] + lines[3:], r"line 4 is empty between samples"),
         (lambda lines: lines[:2] + ["," + lines[2].split(",", 1)[1]] + lines[3:], r"line 3, column 'time_s' is blank"),
@@ -130,7 +153,9 @@ def test_pressure_columns_must_match_the_axles(tmp_path, drop, add, shown):
     if add:
         frame[add] = 1.0
     path = _write_pair(tmp_path, frame=frame)
-    with pytest.raises(RecordingError, match=rf"pressure columns \[.*{shown}\] do not match vehicle 'emu_8axle' with 8 axles"):
+    with pytest.raises(
+        RecordingError, match=rf"pressure columns \[.*{shown}\] do not match vehicle 'emu_8axle' with 8 axles"
+    ):
         read_recording(path)
 
 
@@ -202,8 +227,15 @@ def clean_set(tmp_path_factory):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = synthesize(
-            folder, 4, seed=3, noise_scale=0.0, scatter_setup="ds",
-            effects=[EffectRequest("gradient", {"gradient_permil": 8.0}), EffectRequest("speed_sensor_scale", {"scale": 1.03})],
+            folder,
+            4,
+            seed=3,
+            noise_scale=0.0,
+            scatter_setup="ds",
+            effects=[
+                EffectRequest("gradient", {"gradient_permil": 8.0}),
+                EffectRequest("speed_sensor_scale", {"scale": 1.03}),
+            ],
         )
     effects = [make_effect("gradient", gradient_permil=8.0), make_effect("speed_sensor_scale", scale=1.03)]
     return read_dataset(folder).recordings, effects, result.key
@@ -259,7 +291,9 @@ def test_nuisance_initial_state_overrides(clean_set):
     recordings, effects, _ = clean_set
     recording = recordings[0]
     base = replay(recording, effects)
-    faster = replay(recording, effects, initial_speed_mps=base.initial_speed_mps + 1.0, initial_disc_C=base.initial_disc_C + 30.0)
+    faster = replay(
+        recording, effects, initial_speed_mps=base.initial_speed_mps + 1.0, initial_disc_C=base.initial_disc_C + 30.0
+    )
     assert faster.simulated["speed_mps"].iloc[0] == pytest.approx(1.03 * (base.initial_speed_mps + 1.0))
     assert faster.states["T_fric_C"].iloc[0] == pytest.approx(base.initial_disc_C + 30.0)
     # The default initial speed is the first speed sample seen through the scaled sensor.
@@ -294,7 +328,10 @@ def test_first_order_lag_is_exact_for_a_ramp():
     tau, slope = 4.0, 2.5
     coarse = np.linspace(0.0, 30.0, 7)
     fine = np.linspace(0.0, 30.0, 301)
-    exact = lambda t: slope * t - tau * slope * (1.0 - np.exp(-t / tau))
+
+    def exact(t):
+        return slope * t - tau * slope * (1.0 - np.exp(-t / tau))
+
     np.testing.assert_allclose(first_order_lag(coarse, slope * coarse, tau), exact(coarse), rtol=0, atol=1e-12)
     np.testing.assert_allclose(first_order_lag(fine, slope * fine, tau), exact(fine), rtol=0, atol=1e-12)
     np.testing.assert_array_equal(first_order_lag(coarse, slope * coarse, 0.0), slope * coarse)

@@ -22,7 +22,11 @@ def test_entries_are_environment_ids_and_own_keys_stay_in_their_section(name):
     assert ids and all(key in task_classes() for key in ids)
     for key in ids:
         assert not set(entries[key]) & set(BRAKEGYM_KEYS), key
-        assert all(isinstance(value, (int, float)) for field, value in entries[key].items() if field in ("n_timesteps", "gamma"))
+        assert all(
+            isinstance(value, (int, float))
+            for field, value in entries[key].items()
+            if field in ("n_timesteps", "gamma")
+        )
         load_hyperparameters(name, key, CONFIGS / f"{name}.yaml")  # brakegym reads it too
     assert set(entries.get(OWN_SECTION, {})) <= set(ids)
 
@@ -32,10 +36,27 @@ def test_rl_zoo3_trains_from_the_file(name, tmp_path):
     pytest.importorskip("rl_zoo3")
     env_id = next(key for key in yaml.safe_load((CONFIGS / f"{name}.yaml").read_text()) if key != OWN_SECTION)
     command = [
-        sys.executable, "-m", "rl_zoo3.train", "--algo", ZOO_FILES[name], "--env", env_id, "--gym-packages", "brakegym",
-        "--conf-file", str(CONFIGS / f"{name}.yaml"), "-n", "1000", "-f", str(tmp_path / "logs"), "--seed", "0",
-    ]  # fmt: skip
-    result = subprocess.run(command, capture_output=True, text=True, timeout=600, env={"OMP_NUM_THREADS": "1", **__import__("os").environ})
+        sys.executable,
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        ZOO_FILES[name],
+        "--env",
+        env_id,
+        "--gym-packages",
+        "brakegym",
+        "--conf-file",
+        str(CONFIGS / f"{name}.yaml"),
+        "-n",
+        "1000",
+        "-f",
+        str(tmp_path / "logs"),
+        "--seed",
+        "0",
+    ]
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=600, env={"OMP_NUM_THREADS": "1", **__import__("os").environ}
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     saved = list((tmp_path / "logs" / ZOO_FILES[name]).glob("brakegym-*_1/*.zip"))
     assert saved, result.stdout[-2000:]

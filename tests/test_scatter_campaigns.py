@@ -7,9 +7,9 @@ from scipy import stats
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication
 from brakegym.campaigns import dyno_applications, field_applications, field_campaign, train_monte_carlo
-from brakegym.statistics import envelope, sample_statistics
 from brakegym.physics import draw_friction, draw_running_resistance
 from brakegym.plants import scatter_partition, stochastic_friction
+from brakegym.statistics import envelope, sample_statistics
 
 N = 4000
 
@@ -20,7 +20,13 @@ def material():
 
 
 def _draw(material, setup_name, seed=7):
-    return draw_friction(np.random.default_rng(seed), stochastic_friction(material), scatter_partition(cfg.load("setups", setup_name)), N, (8, 2))
+    return draw_friction(
+        np.random.default_rng(seed),
+        stochastic_friction(material),
+        scatter_partition(cfg.load("setups", setup_name)),
+        N,
+        (8, 2),
+    )
 
 
 def test_ds_is_nominal(material):
@@ -61,10 +67,14 @@ def test_running_resistance_scatter():
     vehicle = cfg.load("vehicles", "emu_8axle")
     rng = np.random.default_rng(3)
     resistance = vehicle.running_resistance
-    scattered = draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N)
+    scattered = draw_running_resistance(
+        rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N
+    )
     assert scattered.mean() == pytest.approx(2500, abs=4 * 1600 / np.sqrt(N))
     assert scattered.std(ddof=1) == pytest.approx(1600, rel=0.04)
-    fixed = draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "ds")), 10)
+    fixed = draw_running_resistance(
+        rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "ds")), 10
+    )
     assert np.all(fixed == 2500)
 
 
@@ -115,7 +125,9 @@ def test_same_seed_same_campaign_bit_for_bit_any_worker_count():
     vehicle = cfg.load("vehicles", "emu_8axle")
     apps = [
         TrainApplication(load=load, brake_mode="emergency", actuation=act, initial_speed_kmh=v)
-        for load in ("empty", "max") for act in ("EP", "PN") for v in (100.0, 140.0)
+        for load in ("empty", "max")
+        for act in ("EP", "PN")
+        for v in (100.0, 140.0)
     ] * 150
     setup = cfg.load("setups", "mcs-75-25")
     one, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, workers=1)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from brakegym.cli import main
-from brakegym.recordings import read_dataset
 from brakegym.effects import EFFECTS
+from brakegym.recordings import read_dataset
 from brakegym.recordings.synth import SENSOR_NOISE, EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -33,7 +33,11 @@ def test_same_seed_gives_the_same_bytes_and_the_key_stays_apart(tmp_path):
     assert len(read_dataset(first.folder)) == 3
     key = json.loads(first.key_path.read_text())
     assert key["expected_selected"] == ["gradient", "wet_pads"]
-    assert {k: key["effects"][0][k] for k in ("id", "parameters", "drawn")} == {"id": "gradient", "parameters": {"gradient_permil": -5.8}, "drawn": []}
+    assert {k: key["effects"][0][k] for k in ("id", "parameters", "drawn")} == {
+        "id": "gradient",
+        "parameters": {"gradient_permil": -5.8},
+        "drawn": [],
+    }
     assert key["effects"][1]["drawn"] == ["initial_loss", "drying_energy_MJ"]
     assert key["base_offset"] is None
 
@@ -71,8 +75,13 @@ def test_noise_levels_are_the_documented_ones_and_an_effect_keeps_the_campaign(t
                 d = d[b.channel(channel)[moving] > 0.5]  # away from the transducer's zero
             differences[channel].extend(d[~np.isnan(d)])
     decel_noise = SENSOR_NOISE[f"decel_mps2_{noisy[0].metadata.decel_source}"]
-    expected = {"speed_mps": SENSOR_NOISE["speed_mps"], "decel_mps2": decel_noise, "T_disc_C": SENSOR_NOISE["T_disc_C"],
-                "position_m": SENSOR_NOISE["position_m"], "p_c_bar_3": SENSOR_NOISE["p_c_bar"]}
+    expected = {
+        "speed_mps": SENSOR_NOISE["speed_mps"],
+        "decel_mps2": decel_noise,
+        "T_disc_C": SENSOR_NOISE["T_disc_C"],
+        "position_m": SENSOR_NOISE["position_m"],
+        "p_c_bar_3": SENSOR_NOISE["p_c_bar"],
+    }
     for channel, values in differences.items():
         assert np.std(values) == pytest.approx(expected[channel], rel=0.1), channel
     # Speed is never negative and exactly zero once the train stands.
@@ -98,8 +107,15 @@ def test_the_key_says_whether_an_effect_is_in_the_data(tmp_path):
     assert slope["effects"][0]["imprint"]["expressed"] and slope["expected_selected"] == ["gradient"]
     assert slope["effects"][0]["imprint"]["max_change_over_noise"]["position_m"] > 20.0
     # In a pair, each effect's imprint is measured against the truth with the other one kept.
-    pair = synthesize(tmp_path / "pair", 2, seed=5, effects=[EffectRequest("gradient", {"gradient_permil": 6.0}),
-                                                             EffectRequest("thermal_fade", {"onset_C": 590.0})]).key
+    pair = synthesize(
+        tmp_path / "pair",
+        2,
+        seed=5,
+        effects=[
+            EffectRequest("gradient", {"gradient_permil": 6.0}),
+            EffectRequest("thermal_fade", {"onset_C": 590.0}),
+        ],
+    ).key
     assert pair["expected_selected"] == ["gradient"]
 
 
@@ -123,7 +139,9 @@ def test_base_offset_is_recorded_as_not_an_effect(tmp_path):
 
 def test_command_line(tmp_path, capsys):
     out = tmp_path / "set"
-    assert main(["synth", str(out), "--recordings", "2", "--seed", "5", "--effect", "gradient:gradient_permil=-5.8"]) == 0
+    assert (
+        main(["synth", str(out), "--recordings", "2", "--seed", "5", "--effect", "gradient:gradient_permil=-5.8"]) == 0
+    )
     assert (tmp_path / "set_key.json").is_file() and len(read_dataset(out)) == 2
     assert main(["synth", str(out), "--recordings", "2", "--seed", "5"]) == 2  # folder holds a set
     assert "already holds recordings" in capsys.readouterr().err

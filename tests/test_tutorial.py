@@ -56,5 +56,7 @@ def test_fig3_sixteen_discs_average_independent_scatter_only(tutorial, tmp_path)
     assert 3.0 < numbers["ratio_shared_over_mcs100_friction_only"] < 5.0
     assert numbers["ratio_mcs7525_over_shared_friction_only"] == pytest.approx(0.75, abs=0.1)
     # The running resistance scatters once per train: it does not average out over the discs.
-    assert numbers["ratio_shared_over_mcs100_with_resistance_scatter"] < numbers["ratio_shared_over_mcs100_friction_only"]
+    assert (
+        numbers["ratio_shared_over_mcs100_with_resistance_scatter"] < numbers["ratio_shared_over_mcs100_friction_only"]
+    )
     assert numbers["ratio_shared_over_mcs100_with_resistance_scatter"] > 1.5

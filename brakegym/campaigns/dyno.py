@@ -33,8 +33,14 @@ class DynoCampaignResult:
             for column in ("mu_s", "s_m", "t_stop_s", "T_fric_max_C"):
                 if len(group) > 1 and group[column].std() > 0:
                     st = sample_statistics(group[column].to_numpy())
-                    row.update({f"{column}_mean": st.mean, f"{column}_std": st.std,
-                                f"{column}_mean_ci95": st.mean_ci95, f"{column}_std_ci95": st.std_ci95})
+                    row.update(
+                        {
+                            f"{column}_mean": st.mean,
+                            f"{column}_std": st.std,
+                            f"{column}_mean_ci95": st.mean_ci95,
+                            f"{column}_std_ci95": st.std_ci95,
+                        }
+                    )
                 else:
                     row.update({f"{column}_mean": group[column].mean(), f"{column}_std": 0.0})
             rows.append(row)

@@ -28,7 +28,9 @@ def _envelope_grid(result: DynoCampaignResult, quantity: str, ylabel: str, title
     names = list(result.envelopes)
     speeds = sorted({name.split("_")[0] for name in names})
     cases = sorted({name.split("_")[1] for name in names})
-    fig, axes = plt.subplots(len(speeds), len(cases), figsize=(3.6 * len(cases), 2.4 * len(speeds)), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(speeds), len(cases), figsize=(3.6 * len(cases), 2.4 * len(speeds)), sharey=True, squeeze=False
+    )
     for name, frame in result.envelopes.items():
         speed, case = name.split("_")
         ax = axes[speeds.index(speed)][cases.index(case)]
@@ -49,7 +51,11 @@ def _envelope_grid(result: DynoCampaignResult, quantity: str, ylabel: str, title
 def dyno_campaign_figures(result: DynoCampaignResult, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     paths = [
-        _save(_envelope_grid(result, "mu", "μ [-]", "Dynamometer: coefficient of friction"), out_dir, "fig03_mu_envelopes.png"),
+        _save(
+            _envelope_grid(result, "mu", "μ [-]", "Dynamometer: coefficient of friction"),
+            out_dir,
+            "fig03_mu_envelopes.png",
+        ),
         _save(
             _envelope_grid(result, "T_fric_C", "T_fric [°C]", "Dynamometer: friction-surface temperature"),
             out_dir,
@@ -64,7 +70,14 @@ def dyno_campaign_figures(result: DynoCampaignResult, out_dir: Path) -> list[Pat
     for k, specimen in enumerate(specimens):
         sub = table[table.specimen == specimen].groupby("load_case", sort=False)["mu_s"]
         means, stds = sub.mean().reindex(cases), sub.std().reindex(cases).fillna(0.0)
-        ax.errorbar(np.arange(len(cases)) + (k - len(specimens) / 2 + 0.5) * width, means, yerr=stds, fmt="o", ms=3, label=specimen)
+        ax.errorbar(
+            np.arange(len(cases)) + (k - len(specimens) / 2 + 0.5) * width,
+            means,
+            yerr=stds,
+            fmt="o",
+            ms=3,
+            label=specimen,
+        )
     ax.set_xticks(np.arange(len(cases)), cases, rotation=45, ha="right", fontsize=8)
     ax.set_ylabel("μ_s (Eq. 3) [-]")
     ax.set_title(f"Mean COF over distance per specimen and load case ({result.setup}), mean ± 1σ")
@@ -136,7 +149,15 @@ def field_campaign_figures(result: FieldCampaignResult, out_dir: Path) -> list[P
     for mode, color in colors.items():
         idx = np.flatnonzero(order.brake_mode == mode)
         ax.errorbar(idx, mean[idx], yerr=3 * std[idx], fmt="none", ecolor=color, alpha=0.35, label=f"{mode}: ± 3σ")
-        ax.errorbar(idx, mean[idx], yerr=[mean[idx] - low[idx], high[idx] - mean[idx]], fmt="o", ms=3, color=color, label=f"{mode}: mean, 95 % CI")
+        ax.errorbar(
+            idx,
+            mean[idx],
+            yerr=[mean[idx] - low[idx], high[idx] - mean[idx]],
+            fmt="o",
+            ms=3,
+            color=color,
+            label=f"{mode}: mean, 95 % CI",
+        )
     ax.set_xlabel("field application (sorted by mode, speed, load, actuation, pad set)")
     ax.set_ylabel("braking distance from command [m]")
     ax.set_title(f"Field campaign: braking distance per application ({result.setup})")
@@ -161,8 +182,21 @@ def demo_figure(summaries: dict[str, StopSummary], out_path: Path) -> Path:
             axes[0][1].plot(traj.time_s[braking], traj.deceleration_mps2[braking, i], **kw)
             axes[1][0].plot(traj.time_s[braking], traj.mu[braking, i].mean(axis=1), **kw)
             axes[1][1].plot(traj.time_s[braking], traj.friction_temperature_C[braking, i].max(axis=1), **kw)
-        axes[0][0].plot([], [], color=color, label=f"{label}: braking distance {summary.braking_distance_m.mean():.0f} ± {summary.braking_distance_m.std(ddof=1):.1f} m")
-        axes[1][0].plot([], [], color=color, label=f"{label}: μ_s,eff {summary.mu_s_eff.mean():.3f} ± {summary.mu_s_eff.std(ddof=1):.3f}")
+        axes[0][0].plot(
+            [],
+            [],
+            color=color,
+            label=(
+                f"{label}: braking distance {summary.braking_distance_m.mean():.0f} "
+                f"± {summary.braking_distance_m.std(ddof=1):.1f} m"
+            ),
+        )
+        axes[1][0].plot(
+            [],
+            [],
+            color=color,
+            label=f"{label}: μ_s,eff {summary.mu_s_eff.mean():.3f} ± {summary.mu_s_eff.std(ddof=1):.3f}",
+        )
     axes[0][0].set(xlabel="distance [m]", ylabel="speed [km/h]", title="Speed over distance")
     axes[0][1].set(xlabel="time [s]", ylabel="deceleration [m/s²]", title="Deceleration")
     axes[1][0].set(xlabel="time [s]", ylabel="μ, mean of 16 discs [-]", title="Dynamic coefficient of friction")

@@ -66,11 +66,15 @@ class Trends:
             f"   shared / MCS-100 (no resistance scatter) = {self.sqrt_n_ratio:.2f}  "
             f"(sqrt({self.n_discs}) = {np.sqrt(self.n_discs):.0f})"
         )
-        lines.append(f"   MCS-75/25 / shared (no resistance scatter) = {self.partial_ratio:.2f}  (about three quarters)")
+        lines.append(
+            f"   MCS-75/25 / shared (no resistance scatter) = {self.partial_ratio:.2f}  (about three quarters)"
+        )
         return "\n".join(lines)
 
 
-def compute_trends(seed: int = 2022, train_applications: int = 400, step_s: float = DEFAULT_STEP_S, workers: int = 2) -> Trends:
+def compute_trends(
+    seed: int = 2022, train_applications: int = 400, step_s: float = DEFAULT_STEP_S, workers: int = 2
+) -> Trends:
     rig = cfg.load("rigs", "dynamometer")
     ds = dyno_campaign(rig, cfg.load("setups", "ds"), seed, step_s=step_s, workers=workers).applications
     by_speed = ds.groupby("v0_kmh")["mu_s"].mean()

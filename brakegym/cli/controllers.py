@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .common import (
     UsageError,
@@ -94,8 +94,15 @@ def _run(args: argparse.Namespace, agent: str):
     bar = progress(args.episodes, f"{name} on {args.env.split('/')[1]}")
     try:
         result = run_stress(
-            args.env, factory, name, setup=args.setup, episodes=args.episodes, seed=args.seed,
-            batch_size=args.batch, keep_worst=getattr(args, "worst", 5), progress=bar.update,
+            args.env,
+            factory,
+            name,
+            setup=args.setup,
+            episodes=args.episodes,
+            seed=args.seed,
+            batch_size=args.batch,
+            keep_worst=getattr(args, "worst", 5),
+            progress=bar.update,
         )
     finally:
         bar.close()
@@ -107,8 +114,13 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     out = args.out or f"out/agents/{args.env.split('/')[1]}_{args.algo}_seed{args.seed}"
     folder = train(
-        args.algo, args.env, out, seed=args.seed, total_timesteps=args.timesteps,
-        time_budget_s=None if args.time_budget_min is None else 60.0 * args.time_budget_min, setup=args.setup,
+        args.algo,
+        args.env,
+        out,
+        seed=args.seed,
+        total_timesteps=args.timesteps,
+        time_budget_s=None if args.time_budget_min is None else 60.0 * args.time_budget_min,
+        setup=args.setup,
     )
     meta = json.loads((folder / "training.json").read_text())
     print(f"trained {args.algo} on {args.env}: {meta['timesteps']} steps in {meta['wall_time_s']} s -> {folder}")
@@ -149,14 +161,20 @@ def cmd_stress(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise UsageError(f"--out {out}: cannot write ({exc.strerror})") from exc
     print(f"\nfigure: {figure}; worst episodes: {out}/worst_*.json")
-    write_json(args.json, {"env": args.env, "setup": args.setup, "episodes": args.episodes, "seed": args.seed, "agents": reports})
+    write_json(
+        args.json,
+        {"env": args.env, "setup": args.setup, "episodes": args.episodes, "seed": args.seed, "agents": reports},
+    )
     return 0
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``train``, ``evaluate`` and ``stress``."""
+
     def common(p: argparse.ArgumentParser, default_episodes: int) -> None:
-        p.add_argument("--env", type=_env_id, default="brakegym/StationStop-v0", help="environment (default StationStop-v0)")
+        p.add_argument(
+            "--env", type=_env_id, default="brakegym/StationStop-v0", help="environment (default StationStop-v0)"
+        )
         p.add_argument("--setup", default="mcs-75-25", help="friction scatter set-up (default mcs-75-25)")
         p.add_argument("--episodes", type=positive_int("--episodes"), default=default_episodes)
         p.add_argument("--seed", type=non_negative_int("--seed"), default=0)
@@ -164,7 +182,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--json", help="write the results as JSON")
 
     p = sub.add_parser("train", help="train a stable-baselines3 agent (ppo, sac, ppo-residual) on an environment")
-    p.add_argument("--algo", choices=["ppo", "sac", "ppo-residual"], default="ppo", help="ppo-residual: PPO correcting the PID's command")
+    p.add_argument(
+        "--algo",
+        choices=["ppo", "sac", "ppo-residual"],
+        default="ppo",
+        help="ppo-residual: PPO correcting the PID's command",
+    )
     p.add_argument("--env", type=_env_id, default="brakegym/StationStop-v0")
     p.add_argument("--setup", default="mcs-75-25")
     p.add_argument("--seed", type=non_negative_int("--seed"), default=0)
@@ -179,8 +202,15 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("stress", help="stress-test controllers under friction scatter: table, worst episodes, figure")
-    p.add_argument("--agent", action="append", required=True, help="pid, ppo, sac, ppo-residual or an agent folder; repeat to compare")
-    p.add_argument("--bands", type=_bands, help="speed band edges in km/h, e.g. 40,60,80,100 (default: thirds of the range)")
+    p.add_argument(
+        "--agent",
+        action="append",
+        required=True,
+        help="pid, ppo, sac, ppo-residual or an agent folder; repeat to compare",
+    )
+    p.add_argument(
+        "--bands", type=_bands, help="speed band edges in km/h, e.g. 40,60,80,100 (default: thirds of the range)"
+    )
     p.add_argument("--worst", type=non_negative_int("--worst"), default=5, help="worst episodes to save (default 5)")
     p.add_argument("--out", default="out/stress", help="folder for the figure and worst episodes (default out/stress)")
     common(p, 1000)

@@ -71,7 +71,10 @@ def cmd_parameters(args: argparse.Namespace) -> int:
     result = identify(cases, names, material, disc, settings)
     print(result.table())
     payload = {
-        "command": "identify parameters", "config": settings.name, "material": material.name, "disc": disc.name,
+        "command": "identify parameters",
+        "config": settings.name,
+        "material": material.name,
+        "disc": disc.name,
         **result.as_dict(),
     }
     if dataset is not None:
@@ -115,8 +118,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--dyno-curves", help="CSV of mean curves: load_case, t_s, mu, T_fric_C")
     source.add_argument("--recordings", help="folder of train recordings (recording-format.md)")
-    p.add_argument("--parameters", default="friction", help="symbols or sets of the identification config, comma-separated (default friction)")
-    p.add_argument("--config", default="default", help="identification config: name in configs/identification/ or a YAML path")
+    p.add_argument(
+        "--parameters",
+        default="friction",
+        help="symbols or sets of the identification config, comma-separated (default friction)",
+    )
+    p.add_argument(
+        "--config", default="default", help="identification config: name in configs/identification/ or a YAML path"
+    )
     p.add_argument("--rig", default="dynamometer", help="rig config of the dyno curves (default dynamometer)")
     p.add_argument("--material", help="material config to start from (default: the rig's or vehicle's)")
     p.add_argument("--disc", help="disc config to start from (default: the rig's or vehicle's)")
@@ -132,8 +141,15 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--vehicle", default="emu_8axle")
     p.add_argument("--dyno-observable", choices=sorted(DYNO_OBSERVABLES), default="mu_s")
     p.add_argument("--field-observable", choices=sorted(TRAIN_OBSERVABLES), default="mu_s_eff")
-    p.add_argument("--dyno-split", type=_split, default=0.0, help="global fraction of the dyno data's set-up (default 0: independent stops, MCS-100), or 'fit'")
-    p.add_argument("--no-resistance-scatter", action="store_true", help="the train data had no running-resistance scatter")
+    p.add_argument(
+        "--dyno-split",
+        type=_split,
+        default=0.0,
+        help="global fraction of the dyno data's set-up (default 0: independent stops, MCS-100), or 'fit'",
+    )
+    p.add_argument(
+        "--no-resistance-scatter", action="store_true", help="the train data had no running-resistance scatter"
+    )
     p.add_argument("--config", default="default")
     p.add_argument("--json", help="write the result as JSON")
     p.set_defaults(func=cmd_scatter)

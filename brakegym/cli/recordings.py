@@ -92,7 +92,9 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("out_dir", metavar="OUT_DIR", help="folder for the recordings (new or empty)")
-    p.add_argument("--recordings", type=integer_at_least("--recordings", 1), required=True, help="number of brake applications")
+    p.add_argument(
+        "--recordings", type=integer_at_least("--recordings", 1), required=True, help="number of brake applications"
+    )
     p.add_argument("--seed", type=integer_at_least("--seed", 0), required=True)
     p.add_argument(
         "--effect",
@@ -103,7 +105,12 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--random-effects", action="store_true", help="zero, one or two effects drawn from the library")
     p.add_argument("--base-offset", action="store_true", help="move the base model within its scatter (not an effect)")
-    p.add_argument("--noise-scale", type=finite_non_negative("--noise-scale"), default=1.0, help="factor on every sensor noise level (default 1)")
+    p.add_argument(
+        "--noise-scale",
+        type=finite_non_negative("--noise-scale"),
+        default=1.0,
+        help="factor on every sensor noise level (default 1)",
+    )
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")
     p.set_defaults(func=cmd_synth)
 
@@ -124,7 +131,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         from ..diagnosis import write_effect_set
 
         path = write_effect_set(report, args.effects_out, Path(args.dataset_dir).name)
-        print(f"effect set: {path} (simulator: brakegym.effects.load_effects; environments: config effects={str(path)!r})")
+        print(
+            f"effect set: {path} (simulator: brakegym.effects.load_effects; environments: config effects={str(path)!r})"
+        )
     if dataset.errors:
         print(f"left out {len(dataset.errors)} bad recording(s) (listed on stderr); diagnosed {len(dataset)}")
     print(f"selected: {', '.join(report['selected']) or 'nothing'}")
@@ -146,11 +155,22 @@ def _add_diagnose_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", help="write the report as JSON (a public interface)")
     p.add_argument("--report", metavar="DIR", help="folder for the Markdown report and its figures")
     p.add_argument(
-        "--effects-out", metavar="FILE.yaml",
+        "--effects-out",
+        metavar="FILE.yaml",
         help="write the selected effects with their fitted parameters as an effect set (configs/effects schema)",
     )
-    p.add_argument("--top-singles", type=integer_at_least("--top-singles", 1), default=3, help="screened effects fitted in full (default 3)")
-    p.add_argument("--pairs-from", type=integer_at_least("--pairs-from", 0), default=2, help="pairs among this many best singles (default 2)")
+    p.add_argument(
+        "--top-singles",
+        type=integer_at_least("--top-singles", 1),
+        default=3,
+        help="screened effects fitted in full (default 3)",
+    )
+    p.add_argument(
+        "--pairs-from",
+        type=integer_at_least("--pairs-from", 0),
+        default=2,
+        help="pairs among this many best singles (default 2)",
+    )
     add_skip_bad_recordings_option(p)
     p.set_defaults(func=cmd_diagnose)
 

@@ -39,7 +39,9 @@ def cmd_dyno(args: argparse.Namespace) -> int:
         }
         for i, case in enumerate(cases)
     ]
-    print(f"{'load case':<13} {'v0 km/h':>8} {'s [m]':>9} {'s2 [m]':>9} {'mu_s':>7} {'t_stop [s]':>10} {'T_max [C]':>9}")
+    print(
+        f"{'load case':<13} {'v0 km/h':>8} {'s [m]':>9} {'s2 [m]':>9} {'mu_s':>7} {'t_stop [s]':>10} {'T_max [C]':>9}"
+    )
     for case, row in zip(cases, rows):
         print(
             f"{row['load_case']:<13} {case.initial_speed_kmh:8.0f} {row['s_m']:9.2f} {row['s2_m']:9.2f} "
@@ -58,13 +60,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     vehicle.brake_pressure_bar(args.mode, args.load)
     cfg.load("pneumatics", args.actuation)
     app = TrainApplication(
-        load=args.load, brake_mode=args.mode, actuation=args.actuation, initial_speed_kmh=args.v0,
+        load=args.load,
+        brake_mode=args.mode,
+        actuation=args.actuation,
+        initial_speed_kmh=args.v0,
         command_time_s=args.command_time,
     )
     if args.setup == "ds":
         summary = train_stops(vehicle, [app], step_s=args.step)
     else:
-        summary, _, _ = train_monte_carlo(vehicle, [app], cfg.load("setups", args.setup), args.seed, args.step, workers=1)
+        summary, _, _ = train_monte_carlo(
+            vehicle, [app], cfg.load("setups", args.setup), args.seed, args.step, workers=1
+        )
     result = {
         "vehicle": vehicle.name,
         "load": args.load,
@@ -98,12 +105,17 @@ def cmd_mcs(args: argparse.Namespace) -> int:
         rig = cfg.load("rigs", cfg.load("campaigns", "dyno2022").rig)
         total = len(campaigns.dyno_applications(rig))
         with progress(total, "dyno campaign") as bar:
-            result = campaigns.dyno_campaign(rig, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update)
+            result = campaigns.dyno_campaign(
+                rig, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update
+            )
         summary = result.load_case_summary()
         print(f"dynamometer campaign, {setup.name}, seed {args.seed}: {len(result.applications)} applications")
         print(f"{'load case':<13} {'n':>4} {'mu_s mean':>9} {'mu_s std':>9} {'s mean [m]':>10} {'s std [m]':>9}")
         for _, row in summary.iterrows():
-            print(f"{row.load_case:<13} {row.n:4d} {row.mu_s_mean:9.4f} {row.mu_s_std:9.4f} {row.s_m_mean:10.1f} {row.s_m_std:9.2f}")
+            print(
+                f"{row.load_case:<13} {row.n:4d} {row.mu_s_mean:9.4f} {row.mu_s_std:9.4f} "
+                f"{row.s_m_mean:10.1f} {row.s_m_std:9.2f}"
+            )
         payload = {
             "campaign": "dyno",
             "setup": setup.name,
@@ -114,7 +126,9 @@ def cmd_mcs(args: argparse.Namespace) -> int:
             "specimens": result.specimen_summary().to_dict(orient="records"),
         }
         if args.figures:
-            paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [figures.mu_trend_figure(Path(args.figures))]
+            paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [
+                figures.mu_trend_figure(Path(args.figures))
+            ]
             print("figures: " + ", ".join(str(p) for p in paths))
         if args.csv:
             result.applications.to_csv(args.csv, index=False)
@@ -122,14 +136,18 @@ def cmd_mcs(args: argparse.Namespace) -> int:
         campaign = cfg.load("campaigns", "field2022")
         total = len(campaigns.field_applications(campaign)) * campaign.repetitions
         with progress(total, "field campaign") as bar:
-            result = campaigns.field_campaign(campaign, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update)
+            result = campaigns.field_campaign(
+                campaign, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update
+            )
         summary = result.application_summary()
         table = result.applications
         print(
             f"field campaign {campaign.name}, {setup.name}, seed {args.seed}: {summary.shape[0]} field applications "
             f"x {campaign.repetitions} = {len(table)} train stops"
         )
-        print(f"{'mode':<10} {'v0':>4} {'mu_s,eff mean':>13} {'rel std %':>9} {'braking dist. [m]':>18} {'rel std %':>9}")
+        print(
+            f"{'mode':<10} {'v0':>4} {'mu_s,eff mean':>13} {'rel std %':>9} {'braking dist. [m]':>18} {'rel std %':>9}"
+        )
         for (mode, v0), group in table.groupby(["brake_mode", "v0_kmh"]):
             mu, dist = group.mu_s_eff, group.braking_distance_m
             print(
@@ -156,7 +174,9 @@ def cmd_mcs(args: argparse.Namespace) -> int:
 def cmd_trends(args: argparse.Namespace) -> int:
     from ..campaigns.trends import compute_trends
 
-    trends = compute_trends(seed=args.seed, train_applications=args.applications, step_s=args.step, workers=args.workers)
+    trends = compute_trends(
+        seed=args.seed, train_applications=args.applications, step_s=args.step, workers=args.workers
+    )
     print(trends.table())
     write_json(args.json, trends.as_dict())
     return 0
@@ -186,7 +206,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     figure = demo_figure(summaries, out / "demo_train_stops.png")
     table = "\n".join(
         [
-            f"emu_8axle, empty, emergency brake (3.3 bar), EP, MCS-75/25 friction scatter, {args.runs} stops per speed, seed {args.seed}",
+            "emu_8axle, empty, emergency brake (3.3 bar), EP, MCS-75/25 friction scatter, "
+            f"{args.runs} stops per speed, seed {args.seed}",
             "",
             "| v0 [km/h] | braking distance [m] | std [m] | 95 % CI of mean [m] | mu_s,eff | peak T_fric [C] |",
             "|---|---|---|---|---|---|",
@@ -213,9 +234,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``demo``, ``dyno``, ``simulate``, ``mcs`` and ``trends``."""
     from ..applications import DEFAULT_STEP_S
 
-    step = dict(type=finite_positive("--step"), default=DEFAULT_STEP_S, help=f"integration step in s (default {DEFAULT_STEP_S})")
+    step = dict(
+        type=finite_positive("--step"), default=DEFAULT_STEP_S, help=f"integration step in s (default {DEFAULT_STEP_S})"
+    )
 
-    p = sub.add_parser("demo", help="train emergency stops from 100 and 160 km/h with friction scatter; figure and table")
+    p = sub.add_parser(
+        "demo", help="train emergency stops from 100 and 160 km/h with friction scatter; figure and table"
+    )
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--runs", type=positive_int("--runs"), default=40, help="stops per speed (default 40)")
     p.add_argument("--seed", type=non_negative_int("--seed"), default=2022)
@@ -236,7 +261,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--actuation", default="EP", help="pneumatics config (EP, PN)")
     p.add_argument("--v0", type=finite_positive("--v0"), required=True, help="initial speed in km/h")
     p.add_argument(
-        "--command-time", type=finite_non_negative("--command-time"), default=1.0, help="brake command time in s (default 1)"
+        "--command-time",
+        type=finite_non_negative("--command-time"),
+        default=1.0,
+        help="brake command time in s (default 1)",
     )
     p.add_argument("--setup", default="ds", help="scatter set-up (default ds)")
     p.add_argument("--seed", type=non_negative_int("--seed"), default=0)

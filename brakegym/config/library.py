@@ -30,8 +30,8 @@ from pydantic import BaseModel, ValidationError
 from .schema import (
     ConfigError,
     DiscThermal,
-    DynoCampaign,
     Dynamometer,
+    DynoCampaign,
     EffectSet,
     FieldCampaign,
     FrictionMaterial,

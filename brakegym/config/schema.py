@@ -57,13 +57,12 @@ class FrictionMaterial(StrictModel):
     scatter: FrictionScatter
 
     @model_validator(mode="after")
-    def _bounds_ordered(self) -> "FrictionMaterial":
+    def _bounds_ordered(self) -> FrictionMaterial:
         if not self.mu_min < self.mu_max:
             raise ValueError(f"mu_min ({self.mu_min}) must be below mu_max ({self.mu_max})")
         if not self.mu_min <= self.initial_mu <= self.mu_max:
             raise ValueError(
-                f"initial_mu ({self.initial_mu}) must lie in [mu_min, mu_max] = "
-                f"[{self.mu_min}, {self.mu_max}]"
+                f"initial_mu ({self.initial_mu}) must lie in [mu_min, mu_max] = [{self.mu_min}, {self.mu_max}]"
             )
         return self
 
@@ -113,12 +112,10 @@ class LoadCase(StrictModel):
     applications_per_specimen: list[int]
 
     @model_validator(mode="after")
-    def _counts_non_negative(self) -> "LoadCase":
+    def _counts_non_negative(self) -> LoadCase:
         for index, count in enumerate(self.applications_per_specimen):
             if count < 0:
-                raise ValueError(
-                    f"applications_per_specimen[{index}] = {count}: must not be negative"
-                )
+                raise ValueError(f"applications_per_specimen[{index}] = {count}: must not be negative")
         return self
 
 
@@ -138,7 +135,7 @@ class Dynamometer(StrictModel):
     load_cases: list[LoadCase] = Field(min_length=1)
 
     @model_validator(mode="after")
-    def _cases_consistent(self) -> "Dynamometer":
+    def _cases_consistent(self) -> Dynamometer:
         seen: set[str] = set()
         for index, case in enumerate(self.load_cases):
             if case.name in seen:
@@ -204,7 +201,7 @@ class Vehicle(StrictModel):
     initial_disc_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
 
     @model_validator(mode="after")
-    def _pressures_consistent(self) -> "Vehicle":
+    def _pressures_consistent(self) -> Vehicle:
         for mode, by_load in self.brake_pressures_bar.items():
             for load, pressure in by_load.items():
                 where = f"brake_pressures_bar.{mode}.{load}"
@@ -267,7 +264,7 @@ class FieldCampaign(StrictModel):
     exclude: list[dict[str, Any]] = []
 
     @model_validator(mode="after")
-    def _factors_known(self) -> "FieldCampaign":
+    def _factors_known(self) -> FieldCampaign:
         required = {"brake_mode", "load", "pad_set", "actuation", "initial_speed_kmh"}
         missing = required - set(self.factors)
         if missing:
@@ -310,7 +307,7 @@ class EffectSet(StrictModel):
     effects: list[EffectConfig]
 
     @model_validator(mode="after")
-    def _each_effect_once(self) -> "EffectSet":
+    def _each_effect_once(self) -> EffectSet:
         ids = [effect.id for effect in self.effects]
         repeated = sorted({i for i in ids if ids.count(i) > 1})
         if repeated:

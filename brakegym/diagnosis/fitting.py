@@ -29,8 +29,8 @@ separate candidate.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -363,10 +363,19 @@ class FitProblem:
 
         if free:
             span = upper - lower
-            scale = np.concatenate([0.05 * span[: len(free)], np.full(self.n, 0.1), np.full(self.n, 1.0), np.full(self.n, 0.01)])
+            scale = np.concatenate(
+                [0.05 * span[: len(free)], np.full(self.n, 0.1), np.full(self.n, 1.0), np.full(self.n, 0.01)]
+            )
             solution = least_squares(
-                residual, start, jac=jacobian, bounds=(lower, upper), x_scale=scale, method="trf",
-                max_nfev=max_iterations, xtol=1e-4, ftol=1e-5,
+                residual,
+                start,
+                jac=jacobian,
+                bounds=(lower, upper),
+                x_scale=scale,
+                method="trf",
+                max_nfev=max_iterations,
+                xtol=1e-4,
+                ftol=1e-5,
             )
             start = solution.x
         # The joint fit may stop before each recording's nuisance has converged: finish it, so
@@ -379,7 +388,7 @@ class FitProblem:
         return FitResult(tuple(effect_ids), fixed, free, x, base, jac, replays[0])
 
     # -- candidates, with the nuisance profiled out linearly ------------------------------------
-    def profiler(self, nuisance_jacobian: np.ndarray) -> "NuisanceProfile":
+    def profiler(self, nuisance_jacobian: np.ndarray) -> NuisanceProfile:
         return NuisanceProfile(self, nuisance_jacobian)
 
     def chord_refit(
@@ -388,7 +397,7 @@ class FitProblem:
         fixed: dict[str, float],
         free: Sequence[FreeParameter],
         points: np.ndarray,
-        profile: "NuisanceProfile",
+        profile: NuisanceProfile,
         iterations: int,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each point (rows: effect parameters, then nuisance) with its nuisance refitted by

@@ -87,7 +87,9 @@ class Judge:
         heldout = held_out(self.problem, self.weighting, fit, self.rules.screen_chord_iterations)
         candidate = Candidate(effect_ids, fit, chi2, chi2 - self.chi2_base + n_parameters * self.log_n, heldout)
         surface = [np.nanmax(r.states["T_fric_C"]) for r in fit.replays if "T_fric_C" in r.states]
-        evidence = dataclasses.replace(self.evidence, peak_friction_surface_C=float(max(surface)) if surface else math.inf)
+        evidence = dataclasses.replace(
+            self.evidence, peak_friction_surface_C=float(max(surface)) if surface else math.inf
+        )
         candidate.relevant = all(
             EFFECTS[eid].is_relevant(
                 {k: v for k, v in fit.parameters.items() if k in {s.name for s in EFFECTS[eid].parameters}}, evidence
@@ -119,7 +121,11 @@ class Judge:
         candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
         candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
         candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
-        return candidate.relevant and candidate.delta_bic - reference_bic < rules.select_delta_bic and t >= rules.heldout_min_t
+        return (
+            candidate.relevant
+            and candidate.delta_bic - reference_bic < rules.select_delta_bic
+            and t >= rules.heldout_min_t
+        )
 
     def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
         """Select among ``singles`` and ``pairs`` (see the module documentation)."""
@@ -160,7 +166,10 @@ class Judge:
                 first, second = selected.effect_ids[0], other.effect_ids[0]
                 pairs.append([first, second])
                 correlations[f"{first} / {second}"] = round(
-                    self.weighting.signature_correlation(self.baseline.residual, selected.fit.residual, other.fit.residual), 3
+                    self.weighting.signature_correlation(
+                        self.baseline.residual, selected.fit.residual, other.fit.residual
+                    ),
+                    3,
                 )
         return pairs, correlations
 

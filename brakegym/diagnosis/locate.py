@@ -15,8 +15,8 @@ correlation ratio eta^2) says along which axis a mismatch lives. On clean data i
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -133,7 +133,9 @@ def residual_trace(replayed: Replay) -> ResidualTrace:
         "pressure_bar": pressure,
     }
     moving = _moving(recording)
-    return ResidualTrace(recording, time, speed, decel, kinematic, temperature, axes, moving, moving & (pressure > BRAKING_PRESSURE_BAR))
+    return ResidualTrace(
+        recording, time, speed, decel, kinematic, temperature, axes, moving, moving & (pressure > BRAKING_PRESSURE_BAR)
+    )
 
 
 def correlation_ratio(axis: np.ndarray, residual: np.ndarray, bins: int = ATTRIBUTION_BINS) -> float:
@@ -235,7 +237,9 @@ def describe_unexplained(traces: Sequence[ResidualTrace], shares: dict[str, dict
     form = next(name for name in ("constant", "linear", "quadratic") if fits[name][0] >= best_share - 0.02)
     raw = np.polyfit(x, y, {"constant": 0, "linear": 1, "quadratic": 2}[form])
     label = dict(AXES)[axis]
-    terms = " + ".join(f"{c:.3g} x^{len(raw) - 1 - k}" for k, c in enumerate(raw)).replace(" x^0", "").replace("x^1", "x")
+    terms = (
+        " + ".join(f"{c:.3g} x^{len(raw) - 1 - k}" for k, c in enumerate(raw)).replace(" x^0", "").replace("x^1", "x")
+    )
     return {
         "axis": axis,
         "eta2": shares["decel"][axis],

@@ -9,7 +9,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED  # noqa: E402
 
@@ -24,7 +23,7 @@ def _residuals_figure(diagnosis, path: Path) -> Path:
         fits.append((" + ".join(diagnosis.selected.effect_ids), diagnosis.selected.fit))
     channels = [c for c in (SPEED, DECEL, DISC_TEMPERATURE) if c in diagnosis.problem.noise]
     fig, axes = plt.subplots(len(channels), 2, figsize=(11, 2.6 * len(channels)), squeeze=False)
-    for label, fit in fits:
+    for _, fit in fits:
         for replayed in fit.replays:
             measured = replayed.recording
             for row, channel in enumerate(channels):
@@ -65,7 +64,9 @@ def _traces_figure(diagnosis, path: Path) -> Path:
             ax.plot(recording.time_s, values, color="0.6", lw=0.8, label="measured")
             ax.plot(recording.time_s, replayed.simulated[channel], color="C3", lw=1.0, label="unmodified")
             if after is not None:
-                ax.plot(recording.time_s, after[column].simulated[channel], color="C0", lw=1.0, ls="--", label="with effect")
+                ax.plot(
+                    recording.time_s, after[column].simulated[channel], color="C0", lw=1.0, ls="--", label="with effect"
+                )
             ax.set_ylabel(f"{channel} [{UNITS[channel]}]")
             if row == 0:
                 ax.set_title(recording.stem)
@@ -93,15 +94,35 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
     (out_dir / "diagnosis.json").write_text(json.dumps(report, indent=2) + "\n")
     candidate_rows = [["effects", "parameters (95 %)", "delta BIC", "held-out gain", "relevant size"]]
     for c in report["candidates"]:
-        parameters = ", ".join(f"{k} = {v:g} [{c['ci95'][k][0]:g}, {c['ci95'][k][1]:g}]" for k, v in c["parameters"].items())
-        candidate_rows.append([" + ".join(c["effects"]), parameters, f"{c['delta_bic']:g}", f"{c.get('heldout_gain', float('nan')):.3f}", str(c["relevant_size"])])
-    rms_rows = [["channel", "noise", "unmodified (fitted)", "unmodified (held out)", "selected (fitted)", "selected (held out)"]]
+        parameters = ", ".join(
+            f"{k} = {v:g} [{c['ci95'][k][0]:g}, {c['ci95'][k][1]:g}]" for k, v in c["parameters"].items()
+        )
+        candidate_rows.append(
+            [
+                " + ".join(c["effects"]),
+                parameters,
+                f"{c['delta_bic']:g}",
+                f"{c.get('heldout_gain', float('nan')):.3f}",
+                str(c["relevant_size"]),
+            ]
+        )
+    rms_rows = [
+        ["channel", "noise", "unmodified (fitted)", "unmodified (held out)", "selected (fitted)", "selected (held out)"]
+    ]
     chosen = next((c for c in report["candidates"] if c["effects"] == report["selected"]), None)
     for channel, noise in report["noise"].items():
         if chosen is None or channel not in chosen["rms_before"]:
             continue
-        rms_rows.append([channel, f"{noise:g}", f"{chosen['rms_before'][channel]:g}", f"{chosen['heldout_rms_before'][channel]:g}",
-                         f"{chosen['rms_after'][channel]:g}", f"{chosen['heldout_rms_after'][channel]:g}"])
+        rms_rows.append(
+            [
+                channel,
+                f"{noise:g}",
+                f"{chosen['rms_before'][channel]:g}",
+                f"{chosen['heldout_rms_before'][channel]:g}",
+                f"{chosen['rms_after'][channel]:g}",
+                f"{chosen['heldout_rms_after'][channel]:g}",
+            ]
+        )
     attribution = report["mismatch"]["attribution_eta2"]
     attribution_rows = [["residual", *next(iter(attribution.values())).keys()]] if attribution else []
     for name, shares in attribution.items():

@@ -41,7 +41,7 @@ from .judging import Candidate, Judge
 from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments
 from .report import build_report, candidate_entries
 from .rules import DiagnosisRules
-from .screening import Screening, ScreenedPoint, integer_neighbours
+from .screening import ScreenedPoint, Screening, integer_neighbours
 from .weighting import CHANNEL_NAMES, Weighting
 
 __all__ = ["Diagnoser", "Diagnosis", "diagnose"]
@@ -72,9 +72,13 @@ class Diagnoser:
         self.recordings = list(recordings)
         vehicles = {r.vehicle.name for r in self.recordings}
         if len(vehicles) > 1:
-            raise ValueError(f"the recordings are of several vehicles {sorted(vehicles)}; diagnose one vehicle at a time")
+            raise ValueError(
+                f"the recordings are of several vehicles {sorted(vehicles)}; diagnose one vehicle at a time"
+            )
         overrides = {"top_singles": top_singles, "pairs_from": pairs_from}
-        self.rules = dataclasses.replace(rules or DiagnosisRules(), **{k: v for k, v in overrides.items() if v is not None})
+        self.rules = dataclasses.replace(
+            rules or DiagnosisRules(), **{k: v for k, v in overrides.items() if v is not None}
+        )
         self.noise = estimate_noise(self.recordings)
         fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
         self.problem = FitProblem(self.recordings, fit_noise)
@@ -103,10 +107,17 @@ class Diagnoser:
         verdict = judge.verdict(singles, pairs)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
         report = build_report(
-            problem, weighting, self.noise, mismatch, unexplained,
-            candidate_entries(problem, weighting, baseline, singles + pairs), verdict, screened,
-            {c.effect_ids[0] for c in singles}, judge.chi2_base,
-        )  # fmt: skip
+            problem,
+            weighting,
+            self.noise,
+            mismatch,
+            unexplained,
+            candidate_entries(problem, weighting, baseline, singles + pairs),
+            verdict,
+            screened,
+            {c.effect_ids[0] for c in singles},
+            judge.chi2_base,
+        )
         return Diagnosis(report, self.recordings, baseline, verdict.selected, problem)
 
     def _fit_singles(

@@ -30,7 +30,9 @@ from .screening import ScreenedPoint
 from .weighting import CHANNEL_NAMES, Weighting
 
 
-def ci95(problem: FitProblem, weighting: Weighting, fit: FitResult, leave_one_out_steps: np.ndarray) -> dict[str, list[float]]:
+def ci95(
+    problem: FitProblem, weighting: Weighting, fit: FitResult, leave_one_out_steps: np.ndarray
+) -> dict[str, list[float]]:
     """95 % intervals of a fit's parameters (see the module documentation), inside the bounds;
     integer parameters held fixed have their value as both ends."""
     p = len(fit.free)
@@ -118,7 +120,9 @@ def build_report(
         "selected": list(selected.effect_ids) if selected else [],
         "parameters": dict(selected.report["parameters"]) if selected else {},
         "indistinguishable": verdict.indistinguishable,
-        "separating_measurements": {" / ".join(pair): separating_measurement(*pair) for pair in verdict.indistinguishable},
+        "separating_measurements": {
+            " / ".join(pair): separating_measurement(*pair) for pair in verdict.indistinguishable
+        },
         "signature_correlations": verdict.signature_correlations,
         "unconfirmed": [_unconfirmed_entry(c) for c in verdict.unconfirmed],
         "unexplained": unexplained["text"] if unexplained else None,
@@ -158,8 +162,10 @@ def _unconfirmed_text(report: dict[str, Any]) -> str:
         k = len(entry["acts_on"])
         sentences.append(
             f"{' + '.join(entry['effects'])} ({parameters}) fits the {k} recording{'s' if k > 1 else ''} it acts on "
-            f"({', '.join(Path(name).name for name in entry['acts_on'])}) much better (BIC lower by {-entry['delta_bic']:.0f}; "
-            f"{100 * entry['heldout_gain_acting']:.0f} % of their held-out error removed), but {k} of {report['recordings']} "
+            f"({', '.join(Path(name).name for name in entry['acts_on'])}) much better "
+            f"(BIC lower by {-entry['delta_bic']:.0f}; "
+            f"{100 * entry['heldout_gain_acting']:.0f} % of their held-out error removed), "
+            f"but {k} of {report['recordings']} "
             f"recordings are too few to confirm it on recordings held out of the fit, so it is not selected; "
             f"to confirm or reject it: {entry['to_confirm']}."
         )
@@ -177,7 +183,8 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
     n = report["recordings"]
     noise = report["noise"]
     noise_text = (
-        f"noise {noise.get(SPEED, float('nan')):.3f} m/s in speed, {noise.get(DECEL, float('nan')):.3f} m/s^2 in deceleration "
+        f"noise {noise.get(SPEED, float('nan')):.3f} m/s in speed, "
+        f"{noise.get(DECEL, float('nan')):.3f} m/s^2 in deceleration "
         f"and {noise.get(DISC_TEMPERATURE, float('nan')):.2f} K in disc temperature"
     )
     if selected is not None:
@@ -189,9 +196,9 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
         before, after = selected.report["heldout_rms_before"], selected.report["heldout_rms_after"]
         change = "; ".join(f"{c} {before[c]:g} -> {after[c]:g}" for c in before)
         text = (
-            f"Across {n} recordings ({noise_text}) the unmodified model misses the measurements beyond noise and friction "
-            f"scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: it lowers the held-out "
-            f"residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
+            f"Across {n} recordings ({noise_text}) the unmodified model misses the measurements beyond noise and "
+            f"friction scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: "
+            f"it lowers the held-out residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
         )
         if report["indistinguishable"]:
             pairs = "; ".join(
@@ -204,7 +211,10 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
         return text
     if report["unexplained"]:
         verdict = "is confirmed on held-out recordings" if report["unconfirmed"] else "explains it"
-        return f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library {verdict}. {report['unexplained']}"
+        return (
+            f"Across {n} recordings ({noise_text}) the model misses the data, but no effect of the library "
+            f"{verdict}. {report['unexplained']}"
+        )
     if report["unconfirmed"]:
         return f"Across {n} recordings ({noise_text}) no effect of the library is confirmed on held-out recordings."
     return (

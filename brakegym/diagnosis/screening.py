@@ -94,9 +94,13 @@ class Screening:
         """Profiled effective chi^2 of each point (rows of ``thetas``) and its refitted nuisance."""
         free = self.problem.free_parameters([effect_id], fixed)
         projected, points = self.problem.chord_refit(
-            [effect_id], fixed, free, np.concatenate([thetas, nuisances], axis=1), self.profile,
+            [effect_id],
+            fixed,
+            free,
+            np.concatenate([thetas, nuisances], axis=1),
+            self.profile,
             self.rules.screen_chord_iterations,
-        )  # fmt: skip
+        )
         return np.array([self.weighting.chi2(residual) for residual in projected]), points[:, len(free) :]
 
     def run(self) -> dict[str, ScreenedPoint]:

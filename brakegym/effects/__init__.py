@@ -37,7 +37,7 @@ import numpy as np
 
 from .. import config as cfg
 from ..simulator import BatchConditions, Plant
-from .base import Effect, EffectedModel, Evidence, ParameterSpec, SensorModel, Value, per_train
+from .base import Effect, EffectedModel, Evidence, ParameterSpec, SensorModel, Value
 from .friction import AdhesionLimit, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
 from .track import Gradient, RunningResistanceEffect
@@ -67,7 +67,9 @@ def effect_class(effect_id: str) -> type[Effect]:
 
 
 # What separates two effects whose pair no class names.
-DEFAULT_SEPARATION = "coasting phases, the disc temperature and the kinematic consistency of speed, deceleration and position"
+DEFAULT_SEPARATION = (
+    "coasting phases, the disc temperature and the kinematic consistency of speed, deceleration and position"
+)
 
 
 def separating_measurement(first: str, second: str) -> str:
@@ -109,7 +111,9 @@ def effects_from_config(effect_set: cfg.EffectSet, source: str = "effect set") -
             effects.append(make_effect(item.id, **item.parameters))
         except ValueError as exc:
             shown = {"id": item.id, "parameters": item.parameters}
-            raise cfg.ConfigError(f"{source}: invalid effects config\n  field 'effects.{index}' = {shown}: {exc}") from None
+            raise cfg.ConfigError(
+                f"{source}: invalid effects config\n  field 'effects.{index}' = {shown}: {exc}"
+            ) from None
     return effects
 
 
@@ -119,3 +123,31 @@ def load_effects(name_or_path: str | Path) -> list[Effect]:
     path = Path(name_or_path)
     source = path if path.suffix in (".yaml", ".yml") or path.is_file() else cfg.find("effects", str(name_or_path))
     return effects_from_config(cfg.load_file(source, cfg.EffectSet), str(source))
+
+
+__all__ = [
+    "DEFAULT_SEPARATION",
+    "EFFECTS",
+    "AdhesionLimit",
+    "BrakeUnitFailure",
+    "Effect",
+    "EffectedModel",
+    "Evidence",
+    "FrictionLevel",
+    "Gradient",
+    "ParameterSpec",
+    "RotatingMass",
+    "RunningResistanceEffect",
+    "SensorModel",
+    "SpeedSensorScale",
+    "TemperatureSensorLag",
+    "ThermalFade",
+    "Value",
+    "WetPads",
+    "apply_effects",
+    "effect_class",
+    "effects_from_config",
+    "load_effects",
+    "make_effect",
+    "separating_measurement",
+]

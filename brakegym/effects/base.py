@@ -54,7 +54,9 @@ class ParameterSpec:
     def check(self, effect_id: str, value: Value) -> np.ndarray:
         array = np.asarray(value, dtype=float)
         if array.ndim > 1:
-            raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} must be a number or one value per application")
+            raise ValueError(
+                f"effect {effect_id!r}: parameter {self.name!r} must be a number or one value per application"
+            )
         if np.any(np.isnan(array)):
             raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} is not a number")
         absent = np.full(array.shape, False) if self.no_effect is None else array == self.no_effect

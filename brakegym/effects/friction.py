@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
 from .. import config as cfg
 from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
-from collections.abc import Mapping
-
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
 from .hooks import AdhesionCap, ConstantFrictionFactor, FadeFactor, WetPadFactor
 
@@ -65,8 +64,16 @@ class WetPads(Effect):
         # exp(-E / E_dry): 0.7 and 1.7 MJ are far apart, 5 and 8 MJ nearly alike, so the energy is
         # screened on a geometric grid; a linear grid's points (1.7, 5.0, 8.3 MJ) start a fit of
         # pads that dry within 1 MJ in a second, worse valley at 5-7 MJ.
-        ParameterSpec("drying_energy_MJ", "MJ", 0.05, 10.0, None, ((0.2, 1.5),),
-                      description="heat into one disc that dries it by a factor e", log_grid=True),
+        ParameterSpec(
+            "drying_energy_MJ",
+            "MJ",
+            0.05,
+            10.0,
+            None,
+            ((0.2, 1.5),),
+            description="heat into one disc that dries it by a factor e",
+            log_grid=True,
+        ),
     )
     RELEVANT_LOSS = 0.08
     confirming_measurement = "more stops in the conditions of {where} (wet pads act until the pads have dried)"
@@ -128,7 +135,9 @@ class ThermalFade(Effect):
         if not math.isfinite(evidence.peak_disc_C):
             return []
         onset, loss = cls.parameters
-        onsets = [float(np.clip(evidence.peak_disc_C * share, onset.lower, onset.upper)) for share in cls.ONSET_PEAK_SHARES]
+        onsets = [
+            float(np.clip(evidence.peak_disc_C * share, onset.lower, onset.upper)) for share in cls.ONSET_PEAK_SHARES
+        ]
         return [np.array([o, lo]) for o in onsets for lo in loss.grid(3)]
 
     @classmethod

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
 
+
 class SpeedSensorScale(Effect):
     """The speed sensor reports ``scale`` x the true speed (a wheel-diameter error): speed and
     odometry are scaled together, a deceleration differentiated from speed too, the accelerometer

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 
 import numpy as np
 
 from .. import config as cfg
 from ..physics import RunningResistanceLaw
 from ..units import STANDARD_GRAVITY_MPS2
-from collections.abc import Mapping
-
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
 from .hooks import ConstantForce
+
 
 class Gradient(Effect):
     """A constant track gradient: F = m g p / 1000 (the railway convention: the gradient
@@ -21,8 +21,15 @@ class Gradient(Effect):
 
     id = "gradient"
     parameters = (
-        ParameterSpec("gradient_permil", "permil", -40.0, 40.0, 0.0, ((-15.0, -2.0), (2.0, 15.0)),
-                      description="rise over run x 1000 in the direction of travel"),
+        ParameterSpec(
+            "gradient_permil",
+            "permil",
+            -40.0,
+            40.0,
+            0.0,
+            ((-15.0, -2.0), (2.0, 15.0)),
+            description="rise over run x 1000 in the direction of travel",
+        ),
     )
     RELEVANT_PERMIL = 1.0
     separating_measurements = {

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 
 import numpy as np
 
-from collections.abc import Mapping
-
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
 from .hooks import ConstantFrictionFactor
+
 
 class RotatingMass(Effect):
     """Rotating parts add inertia: the train accelerates as m (1 + mass_factor), while gravity
@@ -50,7 +50,9 @@ class BrakeUnitFailure(Effect):
         plant = model.plant
         failed = per_train(self["failed_units"], model.n_trains, "failed_units")
         if np.any(failed > plant.n_discs):
-            raise ValueError(f"effect 'brake_unit_failure': {failed.max():g} failed units, but {plant.name!r} has {plant.n_discs}")
+            raise ValueError(
+                f"effect 'brake_unit_failure': {failed.max():g} failed units, but {plant.name!r} has {plant.n_discs}"
+            )
         disc_number = np.arange(plant.n_discs).reshape(plant.disc_shape)[..., None]  # (A, k, 1)
         working = (disc_number < plant.n_discs - failed).astype(float)  # (A, k, B)
         model.friction_modifiers.append(ConstantFrictionFactor(working))

@@ -27,6 +27,7 @@ def __getattr__(name: str) -> Any:
         return getattr(env, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+
 __all__ = [
     "BrakeCore",
     "BrakeEnv",

@@ -9,8 +9,9 @@ Errors name the file or argument, the field and the value, like every other brak
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, Mapping
+from typing import Any, Literal
 
 import yaml
 from pydantic import Field, model_validator
@@ -35,7 +36,7 @@ class Range(cfg.StrictModel):
     high: float
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Range":
+    def _ordered(self) -> Range:
         if self.high < self.low:
             raise ValueError(f"high {self.high} is below low {self.low}")
         return self
@@ -77,7 +78,7 @@ class BrakeEnvConfig(cfg.StrictModel):
     effects: str | None = None
 
     @model_validator(mode="after")
-    def _timing(self) -> "BrakeEnvConfig":
+    def _timing(self) -> BrakeEnvConfig:
         substeps = self.simulation_frequency_hz / self.policy_frequency_hz
         if abs(substeps - round(substeps)) > 1e-9 or round(substeps) < 1:
             raise ValueError(
@@ -146,7 +147,9 @@ def load_environment_config(
     cfg.load("setups", env_config.setup)
     unknown = [load for load in env_config.loads if load not in vehicle.loads]
     if unknown:
-        raise cfg.ConfigError(f"{source}: field 'loads' = {unknown}: not loads of vehicle {vehicle.name!r} ({sorted(vehicle.loads)})")
+        raise cfg.ConfigError(
+            f"{source}: field 'loads' = {unknown}: not loads of vehicle {vehicle.name!r} ({sorted(vehicle.loads)})"
+        )
     if env_config.effects is not None:
         # Imported here: the effect library builds on the simulator, which a config needs not load.
         from ..effects import load_effects

@@ -97,7 +97,8 @@ class BrakeCore:
         unknown = sorted(set(options) - set(FLEET_OPTIONS) - set(self.task.options))
         if unknown:
             raise ValueError(
-                f"unknown reset option(s) {unknown}; {self.config.name} accepts {sorted(FLEET_OPTIONS + self.task.options)}"
+                f"unknown reset option(s) {unknown}; "
+                f"{self.config.name} accepts {sorted(FLEET_OPTIONS + self.task.options)}"
             )
         self.fleet.restart(index, rng, options)
         self.task.restart(index, rng, options)
@@ -164,9 +165,7 @@ class BrakeEnv(gym.Env):
 
     metadata = {"render_modes": RENDER_MODES, "render_fps": 10}
 
-    def __init__(
-        self, task: str, config: Mapping[str, Any] | str | Path | None = None, render_mode: str | None = None
-    ):
+    def __init__(self, task: str, config: Mapping[str, Any] | str | Path | None = None, render_mode: str | None = None):
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode {render_mode!r}: choose one of {RENDER_MODES}")
         self.core = BrakeCore(task, config, 1)
@@ -292,7 +291,9 @@ class BrakeVectorEnv(VectorEnv):
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions shape {actions.shape} does not match the action space {self.action_space.shape}")
-        observation, reward, terminated, truncated, outcome = self.core.step(actions, self._rng, allow_ended=not self.autoreset)
+        observation, reward, terminated, truncated, outcome = self.core.step(
+            actions, self._rng, allow_ended=not self.autoreset
+        )
         info = self.core.info(outcome)
         ended = terminated | truncated
         if self.autoreset and ended.any():

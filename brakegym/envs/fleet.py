@@ -4,17 +4,18 @@
 it restarts any subset of them (new speed, load, friction draw, disc temperatures), turns the
 policy's actions into per-axle cylinder pressure commands, runs the physics substeps of one
 control step and measures what the train's sensors would report. A
-:class:`~brakegym.envs.task.BrakeTask` adds what one task draws, observes and rewards. The single and the vector environments
-(:mod:`brakegym.envs.env`) are thin shells around these two, so that the physics of a control step
-exists once, vectorised.
+:class:`~brakegym.envs.task.BrakeTask` adds what one task draws, observes and rewards. The single
+and the vector environments (:mod:`brakegym.envs.env`) are thin shells around these two, so that
+the physics of a control step exists once, vectorised.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import operator
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +32,9 @@ from .options import option_values
 # so that one slice takes them all.
 REPORTED_DISC_STATES = slice(MU, T_DISC + 1)
 if (T_FRIC, T_DISC) != (MU + 1, MU + 2):
-    raise ImportError(f"brakegym.envs expects mu, T_fric, T_disc as consecutive disc states, not rows {MU, T_FRIC, T_DISC}")
+    raise ImportError(
+        f"brakegym.envs expects mu, T_fric, T_disc as consecutive disc states, not rows {MU, T_FRIC, T_DISC}"
+    )
 
 
 @dataclass
@@ -121,10 +124,14 @@ class TrainFleet:
             # A running-resistance effect's B and C hold for every episode: the plant carries them.
             self.plant = model.plant
             self.sim = Simulator(
-                self.plant, model.conditions, self.pressure, step_s=config.physics_step_s,
-                extra_forces=model.extra_forces, friction_modifiers=model.friction_modifiers,
+                self.plant,
+                model.conditions,
+                self.pressure,
+                step_s=config.physics_step_s,
+                extra_forces=model.extra_forces,
+                friction_modifiers=model.friction_modifiers,
                 nominal_running_resistance=self.nominal_plant.running_resistance,
-            )  # fmt: skip
+            )
         # The sensor effects (see the class docstring); None where they are absent, which keeps
         # measure() free of them.
         self.speed_scale: np.ndarray | None = None
@@ -171,7 +178,8 @@ class TrainFleet:
             # The effect sets the running resistance; each train still scatters around it.
             drawn_deviation_N = np.asarray(conditions.running_resistance_A_N) - self.vehicle.running_resistance.A_N
             model.conditions = dataclasses.replace(
-                model.conditions, running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn_deviation_N
+                model.conditions,
+                running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn_deviation_N,
             )
         return model
 
@@ -206,7 +214,9 @@ class TrainFleet:
         if "load" in options:
             load = options["load"]
             if load not in vehicle.loads:
-                raise ValueError(f"reset option 'load' = {load!r}: loads of {vehicle.name!r} are {sorted(vehicle.loads)}")
+                raise ValueError(
+                    f"reset option 'load' = {load!r}: loads of {vehicle.name!r} are {sorted(vehicle.loads)}"
+                )
             load_names = [load] * n
 
         disc_shape = (n, *self.plant.disc_shape)
@@ -214,10 +224,16 @@ class TrainFleet:
         disc_K = friction_K.copy()
         if config.carry_over_thermal_state:
             carried = self.started[index]
-            friction_K[carried] = self.sim.to_external(self.sim.disc[T_FRIC])[index[carried]].reshape(-1, *self.plant.disc_shape)
-            disc_K[carried] = self.sim.to_external(self.sim.disc[T_DISC])[index[carried]].reshape(-1, *self.plant.disc_shape)
+            friction_K[carried] = self.sim.to_external(self.sim.disc[T_FRIC])[index[carried]].reshape(
+                -1, *self.plant.disc_shape
+            )
+            disc_K[carried] = self.sim.to_external(self.sim.disc[T_DISC])[index[carried]].reshape(
+                -1, *self.plant.disc_shape
+            )
         if "initial_disc_temperature_C" in options:
-            fixed = option_values(options["initial_disc_temperature_C"], n, "initial_disc_temperature_C") + ZERO_CELSIUS_K
+            fixed = (
+                option_values(options["initial_disc_temperature_C"], n, "initial_disc_temperature_C") + ZERO_CELSIUS_K
+            )
             friction_K[:] = fixed[:, None, None]
             disc_K[:] = fixed[:, None, None]
 
@@ -237,7 +253,10 @@ class TrainFleet:
             _write_rows(self.episode_conditions, index, conditions)
             conditions = self._effected(conditions).conditions
             model = self._effected(self.episode_conditions)
-            self.sim.extra_forces, self.sim.friction_modifiers = tuple(model.extra_forces), tuple(model.friction_modifiers)
+            self.sim.extra_forces, self.sim.friction_modifiers = (
+                tuple(model.extra_forces),
+                tuple(model.friction_modifiers),
+            )
             self._set_sensors(model.sensors)
         self.sim.reset_trains(index, conditions)
         self.pressure.reset_trains(index, 0.0)
@@ -268,7 +287,9 @@ class TrainFleet:
             )
         if not np.isfinite(actions).all():
             bad = np.argwhere(~np.isfinite(actions))[0]
-            raise ValueError(f"action of train {bad[0]}, group {bad[1]} is {actions[tuple(bad)]}: actions must be finite")
+            raise ValueError(
+                f"action of train {bad[0]}, group {bad[1]} is {actions[tuple(bad)]}: actions must be finite"
+            )
         # Clip, shift and scale per group in one scratch array, then spread the groups to their
         # axles: elementwise, so the same numbers as scaling per axle, with fewer numpy calls.
         per_group_bar = np.maximum(actions, -1.0)
@@ -326,8 +347,8 @@ class TrainFleet:
             decay = np.exp(-h / tau)
         new_C = self._observed_temperature_C()
         change = new_C - self._true_temperature_C
-        self._lagged_temperature_C = new_C + decay * (self._lagged_temperature_C - self._true_temperature_C) - change * (
-            tau * (1.0 - decay) / h
+        self._lagged_temperature_C = (
+            new_C + decay * (self._lagged_temperature_C - self._true_temperature_C) - change * (tau * (1.0 - decay) / h)
         )
         self._true_temperature_C = new_C
 
@@ -373,7 +394,9 @@ class TrainFleet:
             out[:, :2] *= self.speed_scale[:, None]
         out[:, pressure] = self.pressure.pressure_bar
         if self.temperature_lag_s is None:
-            np.subtract(self.sim.disc[T_FRIC].reshape(-1, n)[self._observed_rows].T, ZERO_CELSIUS_K, out=out[:, temperature])
+            np.subtract(
+                self.sim.disc[T_FRIC].reshape(-1, n)[self._observed_rows].T, ZERO_CELSIUS_K, out=out[:, temperature]
+            )
         else:
             out[:, temperature] = self._lagged_temperature_C
         # true value + noise standard deviation * draw, for all channels in one go.

@@ -28,7 +28,9 @@ def task_classes() -> dict[str, type[BrakeTask]]:
         for value in vars(module).values():
             if isinstance(value, type) and issubclass(value, BrakeTask) and value.__module__ == module.__name__:
                 if value.env_id in found:
-                    raise ImportError(f"{value.__qualname__} and {found[value.env_id].__qualname__} both claim {value.env_id}")
+                    raise ImportError(
+                        f"{value.__qualname__} and {found[value.env_id].__qualname__} both claim {value.env_id}"
+                    )
                 found[value.env_id] = value
     return found
 

@@ -6,7 +6,8 @@ Python; this adapter keeps the N trains in one numpy call. Needs the ``rl`` extr
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvObs, VecEnvStepReturn

@@ -8,7 +8,15 @@
 Kept apart from the physics and the simulator: it only builds configs and runs the simulator.
 """
 
-from .cases import DynoCurves, RecordingCases, Series, dyno_curves_from_campaign, read_dyno_curves, recording_cases, write_dyno_curves
+from .cases import (
+    DynoCurves,
+    RecordingCases,
+    Series,
+    dyno_curves_from_campaign,
+    read_dyno_curves,
+    recording_cases,
+    write_dyno_curves,
+)
 from .deterministic import IdentificationResult, ParameterEstimate, identify
 from .parameters import IdentificationConfig, ParameterSpace, load_identification_config
 

@@ -17,9 +17,10 @@ simulator holds those constants per batch (``brakegym.simulator.Plant``).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, Sequence
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
@@ -106,7 +107,8 @@ class DynoCurves:
 
     def describe(self) -> str:
         n = sum(len(s.time_s) for s in self.series)
-        return f"{len(self.case_names)} dynamometer load case(s) of rig {self.rig.name!r}, {len(self.series)} series, {n} samples"
+        cases = len(self.case_names)
+        return f"{cases} dynamometer load case(s) of rig {self.rig.name!r}, {len(self.series)} series, {n} samples"
 
     def predict(self, space: ParameterSpace, rows: np.ndarray) -> list[list[np.ndarray]]:
         cases = [self.rig.load_case(name) for name in self.case_names]
@@ -137,7 +139,9 @@ class DynoCurves:
         return out
 
 
-def dyno_curves_from_campaign(result, rig: cfg.Dynamometer, load_cases: Sequence[str] | None = None, step_s: float = DEFAULT_STEP_S) -> DynoCurves:
+def dyno_curves_from_campaign(
+    result, rig: cfg.Dynamometer, load_cases: Sequence[str] | None = None, step_s: float = DEFAULT_STEP_S
+) -> DynoCurves:
     """Mean curves of a :class:`~brakegym.campaigns.DynoCampaignResult`: the instants at which
     every application of the case still brakes (later the mean runs over a shrinking subset of
     the stops and is no longer the mean stop), from the first instant after t = 0."""
@@ -151,7 +155,9 @@ def dyno_curves_from_campaign(result, rig: cfg.Dynamometer, load_cases: Sequence
         keep = (frame["n_braking"] == total) & (frame["t_s"] > 0)
         for channel in DYNO_CHANNELS:
             series.append(
-                Series(name, channel, frame["t_s"][keep].to_numpy(float), frame[f"{channel}_mean"][keep].to_numpy(float))
+                Series(
+                    name, channel, frame["t_s"][keep].to_numpy(float), frame[f"{channel}_mean"][keep].to_numpy(float)
+                )
             )
     return DynoCurves(rig, tuple(series), step_s)
 
@@ -187,7 +193,9 @@ def read_dyno_curves(path: str | Path, rig: cfg.Dynamometer, step_s: float = DEF
         raise ValueError(f"{path}: cannot read dyno curves ({exc})") from None
     missing = [c for c in ("load_case", "t_s") if c not in frame.columns]
     if missing or not any(c in frame.columns for c in DYNO_CHANNELS):
-        raise ValueError(f"{path}: needs columns load_case, t_s and at least one of {DYNO_CHANNELS}; has {list(frame.columns)}")
+        raise ValueError(
+            f"{path}: needs columns load_case, t_s and at least one of {DYNO_CHANNELS}; has {list(frame.columns)}"
+        )
     unknown = [c for c in frame.columns if c not in CURVE_COLUMNS]
     if unknown:
         raise ValueError(f"{path}: unknown column(s) {unknown}; columns are {CURVE_COLUMNS}")
@@ -199,7 +207,9 @@ def read_dyno_curves(path: str | Path, rig: cfg.Dynamometer, step_s: float = DEF
         bad |= ~np.isfinite(values.fillna(0.0))
         if bad.any():
             row = int(np.flatnonzero(bad.to_numpy())[0])
-            raise ValueError(f"{path}: line {row + 2}, column {column}: {frame[column].iloc[row]!r} is not a finite number")
+            raise ValueError(
+                f"{path}: line {row + 2}, column {column}: {frame[column].iloc[row]!r} is not a finite number"
+            )
         frame[column] = values
     series = []
     for name, group in frame.groupby("load_case", sort=False):
@@ -236,7 +246,13 @@ class _MaterialOverride:
     order = -1  # before every library effect
     sensor = False
 
-    def __init__(self, friction: FrictionLaw, thermal: DiscThermalModel, initial_mu: np.ndarray, power_coefficient_per_s: np.ndarray) -> None:
+    def __init__(
+        self,
+        friction: FrictionLaw,
+        thermal: DiscThermalModel,
+        initial_mu: np.ndarray,
+        power_coefficient_per_s: np.ndarray,
+    ) -> None:
         self.friction, self.thermal = friction, thermal
         self.initial_mu, self.power_coefficient_per_s = initial_mu, power_coefficient_per_s
 
@@ -303,7 +319,9 @@ def recording_cases(dataset, channels: Sequence[str] = tuple(RECORDING_CHANNELS)
     series = []
     for recording in recordings:
         if recording.vehicle != vehicle:
-            raise ValueError(f"{recording.name}: vehicle differs from {recordings[0].name}'s; identify one vehicle at a time")
+            raise ValueError(
+                f"{recording.name}: vehicle differs from {recordings[0].name}'s; identify one vehicle at a time"
+            )
         time = recording.time_s - recording.time_s[0]
         for channel in channels:
             values = recording.channel(channel)

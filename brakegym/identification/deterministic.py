@@ -36,8 +36,9 @@ do not depend on a parameter at all) is both.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from scipy import optimize, stats
@@ -161,7 +162,9 @@ class IdentificationResult:
             )
         lines += ["", f"{'channel':<11} {'samples':>7} {'rms':>10} {'lag-1 rho':>9} {'n_eff':>8}"]
         for c in self.channels:
-            lines.append(f"{c.channel:<11} {c.samples:7d} {c.rms:10.4g} {c.lag1_autocorrelation:9.3f} {c.effective_samples:8.1f}")
+            lines.append(
+                f"{c.channel:<11} {c.samples:7d} {c.rms:10.4g} {c.lag1_autocorrelation:9.3f} {c.effective_samples:8.1f}"
+            )
         symbols = [p.symbol for p in self.parameters]
         lines += ["", "correlation " + " ".join(f"{s:>6}" for s in symbols)]
         for s, row in zip(symbols, self.correlation):
@@ -175,7 +178,14 @@ class _Evaluator:
     """Residuals and Jacobian in scaled parameters u = theta / scale, remembering the last
     evaluation (least_squares asks for residuals and Jacobian at the same point)."""
 
-    def __init__(self, cases: CaseSet, space: ParameterSpace, channel_scales: dict[str, float], scale: np.ndarray, relative_step: float):
+    def __init__(
+        self,
+        cases: CaseSet,
+        space: ParameterSpace,
+        channel_scales: dict[str, float],
+        scale: np.ndarray,
+        relative_step: float,
+    ):
         self.cases, self.space, self.scale = cases, space, scale
         self.relative_step = relative_step
         self.observed = np.concatenate([s.values for s in cases.series])

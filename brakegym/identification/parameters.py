@@ -9,9 +9,10 @@ with a dot, e.g. ``surface.h_ref_W_per_m2K``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -33,7 +34,7 @@ class ParameterBound(cfg.StrictModel):
     upper: float
 
     @model_validator(mode="after")
-    def _ordered(self) -> "ParameterBound":
+    def _ordered(self) -> ParameterBound:
         if not (np.isfinite(self.lower) and np.isfinite(self.upper) and self.lower < self.upper):
             raise ValueError(f"{self.symbol}: bounds [{self.lower}, {self.upper}] must be finite with lower < upper")
         owner_and_field(self.field)  # raises on an unknown field
@@ -45,7 +46,7 @@ class Interval(cfg.StrictModel):
     upper: float = Field(gt=0)
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Interval":
+    def _ordered(self) -> Interval:
         if not self.lower < self.upper:
             raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
         return self
@@ -65,7 +66,7 @@ class StochasticSettings(cfg.StrictModel):
     bootstrap_seed: int = Field(ge=0)
 
     @model_validator(mode="after")
-    def _fraction_range(self) -> "StochasticSettings":
+    def _fraction_range(self) -> StochasticSettings:
         if self.global_fraction.upper > 1:
             raise ValueError(f"global_fraction.upper = {self.global_fraction.upper}: a fraction of sigma is at most 1")
         return self
@@ -88,7 +89,7 @@ class IdentificationConfig(cfg.StrictModel):
     stochastic: StochasticSettings
 
     @model_validator(mode="after")
-    def _consistent(self) -> "IdentificationConfig":
+    def _consistent(self) -> IdentificationConfig:
         symbols = [p.symbol for p in self.parameters]
         fields = [p.field for p in self.parameters]
         for what, names in (("symbol", symbols), ("field", fields)):
@@ -222,6 +223,4 @@ class ParameterSpace:
     def plant_key(self, values: np.ndarray) -> tuple[float, ...]:
         """The values that must be the same for runs to share one simulator batch (all but the
         per-application ones)."""
-        return tuple(
-            float(v) for p, v in zip(self.parameters, values) if p.field not in PER_APPLICATION_FIELDS
-        )
+        return tuple(float(v) for p, v in zip(self.parameters, values) if p.field not in PER_APPLICATION_FIELDS)

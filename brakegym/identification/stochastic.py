@@ -42,8 +42,9 @@ the estimate, when the normalised information matrix has a near-null direction t
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -119,7 +120,14 @@ class _VarianceModel:
 # Sensitivities
 
 
-def _dyno_group_sensitivity(rig: cfg.Dynamometer, material: cfg.FrictionMaterial, case: cfg.LoadCase, observable: str, step: float, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+def _dyno_group_sensitivity(
+    rig: cfg.Dynamometer,
+    material: cfg.FrictionMaterial,
+    case: cfg.LoadCase,
+    observable: str,
+    step: float,
+    step_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
     h = step * np.array([material.initial_mu, material.power_coefficient_per_s])
     mu0 = material.initial_mu + np.array([0.0, h[0], 0.0])
     a = material.power_coefficient_per_s + np.array([0.0, 0.0, h[1]])
@@ -152,12 +160,22 @@ def dyno_spread_groups(
             case = rig.load_case(str(name))
         except cfg.ConfigError as exc:
             raise ValueError(f"dyno applications: {exc}") from None
-        G, S = _dyno_group_sensitivity(rig, material, case, observable, settings.stochastic.sensitivity_relative_step, step_s)
+        G, S = _dyno_group_sensitivity(
+            rig, material, case, observable, settings.stochastic.sensitivity_relative_step, step_s
+        )
         groups.append(SpreadGroup(str(name), frame[observable].to_numpy(float), 1, global_fraction, G, S))
     return groups
 
 
-def _train_group_sensitivity(vehicle: cfg.Vehicle, material: cfg.FrictionMaterial, app: TrainApplication, observable: str, step: float, resistance_scatter: bool, step_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+def _train_group_sensitivity(
+    vehicle: cfg.Vehicle,
+    material: cfg.FrictionMaterial,
+    app: TrainApplication,
+    observable: str,
+    step: float,
+    resistance_scatter: bool,
+    step_s: float,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """One batch: nominal, then mu_0 and a of each disc perturbed alone, then A."""
     shape = (vehicle.n_axles, vehicle.discs_per_axle)
     n_discs = vehicle.n_discs
@@ -202,10 +220,27 @@ def field_spread_groups(
     groups = []
     for key, frame in applications.groupby(FIELD_KEYS, sort=False):
         mode, load, pad_set, actuation, v0 = key
-        app = TrainApplication(load=str(load), brake_mode=str(mode), actuation=str(actuation), initial_speed_kmh=float(v0), command_time_s=command_time_s, pad_set=str(pad_set))
-        G, S, resistance = _train_group_sensitivity(vehicle, material, app, observable, settings.stochastic.sensitivity_relative_step, resistance_scatter, step_s)
+        app = TrainApplication(
+            load=str(load),
+            brake_mode=str(mode),
+            actuation=str(actuation),
+            initial_speed_kmh=float(v0),
+            command_time_s=command_time_s,
+            pad_set=str(pad_set),
+        )
+        G, S, resistance = _train_group_sensitivity(
+            vehicle,
+            material,
+            app,
+            observable,
+            settings.stochastic.sensitivity_relative_step,
+            resistance_scatter,
+            step_s,
+        )
         name = f"{mode}/{load}/{pad_set}/{actuation}/{float(v0):.0f}"
-        groups.append(SpreadGroup(name, frame[observable].to_numpy(float), vehicle.n_discs, global_fraction, G, S, resistance))
+        groups.append(
+            SpreadGroup(name, frame[observable].to_numpy(float), vehicle.n_discs, global_fraction, G, S, resistance)
+        )
     return groups
 
 
@@ -254,7 +289,13 @@ class ScatterResult:
             "bootstrap_resamples": self.bootstrap_resamples,
             "bootstrap_seed": self.bootstrap_seed,
             "parameters": [
-                {"name": p.name, "estimate": p.estimate, "ci95": list(p.ci95), "identifiable": p.identifiable, "reasons": list(p.reasons)}
+                {
+                    "name": p.name,
+                    "estimate": p.estimate,
+                    "ci95": list(p.ci95),
+                    "identifiable": p.identifiable,
+                    "reasons": list(p.reasons),
+                }
                 for p in self.parameters
             ],
             "weak_combinations": self.weak_combinations,
@@ -280,7 +321,16 @@ def _deviance_residuals(variance: np.ndarray, observed: np.ndarray, dof: np.ndar
     return np.sign(q - 1) * np.sqrt(np.maximum(dof * (q - 1 - np.log(q)), 0.0))
 
 
-def _fit(groups: Sequence[SpreadGroup], observed: np.ndarray, start: np.ndarray, lower: np.ndarray, upper: np.ndarray, scale: np.ndarray, fit_split: bool, fixed_split: float) -> np.ndarray:
+def _fit(
+    groups: Sequence[SpreadGroup],
+    observed: np.ndarray,
+    start: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    scale: np.ndarray,
+    fit_split: bool,
+    fixed_split: float,
+) -> np.ndarray:
     dof = np.array([g.dof for g in groups], dtype=float)
     model = _VarianceModel(groups)
 
@@ -289,7 +339,9 @@ def _fit(groups: Sequence[SpreadGroup], observed: np.ndarray, start: np.ndarray,
         split = theta[2] if fit_split else fixed_split
         return _deviance_residuals(model(theta[:2], split), observed, dof)
 
-    solution = optimize.least_squares(residuals, start / scale, bounds=(lower / scale, upper / scale), method="trf", x_scale=1.0)
+    solution = optimize.least_squares(
+        residuals, start / scale, bounds=(lower / scale, upper / scale), method="trf", x_scale=1.0
+    )
     return solution.x * scale
 
 
@@ -309,12 +361,17 @@ def identify_scatter(
     free_split = [g for g in groups if g.global_fraction is None]
     fit_split = bool(free_split)
     names = [*SIGMAS, SPLIT] if fit_split else list(SIGMAS)
-    intervals = [stochastic.initial_mu_sigma, stochastic.power_coefficient_sigma_per_s, stochastic.global_fraction][: len(names)]
+    intervals = [stochastic.initial_mu_sigma, stochastic.power_coefficient_sigma_per_s, stochastic.global_fraction][
+        : len(names)
+    ]
     lower = np.array([i.lower for i in intervals])
     upper = np.array([i.upper for i in intervals])
     theta0 = 0.5 * (lower + upper) if start is None else np.array([start[n] for n in names], dtype=float)
     if np.any(theta0 <= lower) or np.any(theta0 >= upper):
-        raise ValueError(f"start {dict(zip(names, theta0))} must lie strictly inside the bounds {dict(zip(names, zip(lower, upper)))}")
+        raise ValueError(
+            f"start {dict(zip(names, theta0))} must lie strictly inside the bounds "
+            f"{dict(zip(names, zip(lower, upper)))}"
+        )
     scale = np.where(theta0 != 0, np.abs(theta0), 1.0)
     observed = np.array([g.sample_variance for g in groups])
     theta = _fit(groups, observed, theta0, lower, upper, scale, fit_split, fixed_global_fraction)
@@ -336,7 +393,10 @@ def identify_scatter(
         if not any(g.n_discs > 1 for g in free_split):
             reasons[2].append("no multi-disc group with the split free: one disc sees only sigma^2 (f^2 + (1 - f)^2)")
         elif all(g.n_discs > 1 for g in groups):
-            reasons[2].append("only multi-disc groups: they fix sigma^2 (f^2 G^2 + (1 - f)^2 S), not sigma and f apart; add single-disc data")
+            reasons[2].append(
+                "only multi-disc groups: they fix sigma^2 (f^2 G^2 + (1 - f)^2 S), not sigma and f apart; "
+                "add single-disc data"
+            )
     rule = settings.identifiability.max_relative_ci_half_width
     estimates = []
     for j, name in enumerate(names):
@@ -344,7 +404,11 @@ def identify_scatter(
         relative = half / abs(theta[j]) if theta[j] != 0 else np.inf
         if relative > rule:
             reasons[j].append(f"95 % half-width {100 * relative:.0f} % of the estimate")
-        estimates.append(ScatterEstimate(name, float(theta[j]), (float(low[j]), float(high[j])), not reasons[j], tuple(dict.fromkeys(reasons[j]))))
+        estimates.append(
+            ScatterEstimate(
+                name, float(theta[j]), (float(low[j]), float(high[j])), not reasons[j], tuple(dict.fromkeys(reasons[j]))
+            )
+        )
     return ScatterResult(
         parameters=estimates,
         groups=len(groups),
@@ -356,7 +420,15 @@ def identify_scatter(
     )
 
 
-def _weak_directions(groups: Sequence[SpreadGroup], theta: np.ndarray, fit_split: bool, fixed_split: float, names: Sequence[str], settings: IdentificationConfig, reasons: list[list[str]]) -> list[str]:
+def _weak_directions(
+    groups: Sequence[SpreadGroup],
+    theta: np.ndarray,
+    fit_split: bool,
+    fixed_split: float,
+    names: Sequence[str],
+    settings: IdentificationConfig,
+    reasons: list[list[str]],
+) -> list[str]:
     """Near-null directions of the information of the log-variances, columns normalised."""
     dof = np.array([g.dof for g in groups], dtype=float)
 
@@ -366,7 +438,9 @@ def _weak_directions(groups: Sequence[SpreadGroup], theta: np.ndarray, fit_split
 
     steps = 1e-6 * np.maximum(np.abs(theta), 1e-3)
     base = log_variance(theta)
-    jacobian = np.stack([(log_variance(theta + np.eye(len(theta))[j] * steps[j]) - base) / steps[j] for j in range(len(theta))], axis=1)
+    jacobian = np.stack(
+        [(log_variance(theta + np.eye(len(theta))[j] * steps[j]) - base) / steps[j] for j in range(len(theta))], axis=1
+    )
     weighted = jacobian * np.sqrt(dof / 2)[:, None]
     norms = np.linalg.norm(weighted, axis=0)
     normalised = weighted / np.where(norms > 0, norms, 1.0)
@@ -374,7 +448,9 @@ def _weak_directions(groups: Sequence[SpreadGroup], theta: np.ndarray, fit_split
     weak = []
     for value, vector in zip(singular, vt):
         if value < settings.identifiability.min_normalised_singular_value:
-            terms = " ".join(f"{vector[i]:+.2f}*{names[i]}" for i in np.argsort(-np.abs(vector)) if abs(vector[i]) >= 0.1)
+            terms = " ".join(
+                f"{vector[i]:+.2f}*{names[i]}" for i in np.argsort(-np.abs(vector)) if abs(vector[i]) >= 0.1
+            )
             weak.append(f"{terms} (normalised singular value {value:.2g})")
             for j in np.flatnonzero(np.abs(vector) >= 0.1):
                 reasons[j].append(f"near-collinear: {terms}")

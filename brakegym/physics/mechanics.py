@@ -22,9 +22,7 @@ def sliding_speed_mps(speed_mps: np.ndarray, friction_radius_m: float, wheel_rad
     return speed_mps * (friction_radius_m / wheel_radius_m)
 
 
-def brake_force_N(
-    friction_force_N: np.ndarray, friction_radius_m: float, wheel_radius_m: float
-) -> np.ndarray:
+def brake_force_N(friction_force_N: np.ndarray, friction_radius_m: float, wheel_radius_m: float) -> np.ndarray:
     """Retarding force at the wheel-rail contact of each train: sum over its discs of
     mu_i F_C,i r_fric / r_wheel (Eq. 11, the brake torque over the wheel radius).
 
@@ -58,7 +56,7 @@ class RunningResistanceLaw:
     C_N_per_mps2: float
 
     @classmethod
-    def none(cls) -> "RunningResistanceLaw":
+    def none(cls) -> RunningResistanceLaw:
         """No resistance: the dynamometer."""
         return cls(A_N=0.0, B_N_per_mps=0.0, C_N_per_mps2=0.0)
 

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 
 
-
 def clamp_force_from_pressure_N(pressure_bar, gain_N_per_bar, threshold_bar):
     """F_C = k_c max(p_c - p_0, 0) of one disc unit (spec Section 4)."""
     return gain_N_per_bar * np.maximum(pressure_bar - threshold_bar, 0.0)
@@ -54,7 +53,7 @@ class CaliperLaw:
     threshold_bar: float
 
     @classmethod
-    def identity(cls) -> "CaliperLaw":
+    def identity(cls) -> CaliperLaw:
         """For a rig whose actuator is commanded in clamp force directly (the dynamometer)."""
         return cls(gain_N_per_bar=1.0, threshold_bar=0.0)
 

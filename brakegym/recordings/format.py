@@ -30,7 +30,15 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from .columns import DISC_TEMPERATURE, OPTIONAL_CHANNELS, PRESSURE_COLUMN, REQUIRED_COLUMNS, SPEED, TIME, pressure_column
+from .columns import (
+    DISC_TEMPERATURE,
+    OPTIONAL_CHANNELS,
+    PRESSURE_COLUMN,
+    REQUIRED_COLUMNS,
+    SPEED,
+    TIME,
+    pressure_column,
+)
 from .metadata import RecordingMetadata, read_metadata_problems
 from .problems import DatasetError, RecordingError, RecordingProblem, problem_on_lines, refuse
 from .validation import UnparsedCells, sample_problems

@@ -27,9 +27,9 @@ samples around it; before the first and after the last sample the pressure is he
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -38,21 +38,22 @@ from .. import config as cfg
 from ..applications import MAX_STOP_TIME_S
 from ..effects import Effect, EffectedModel, apply_effects
 from ..plants import train_plant
-from ..simulator import BatchConditions, PressureSource, PrescribedPressure, Simulator
+from ..simulator import BatchConditions, PrescribedPressure, PressureSource, Simulator
 from ..simulator.state import FRICTION_HEAT, MU, T_FRIC
 from ..simulator.state import POSITION as POSITION_STATE
 from ..simulator.state import SPEED as SPEED_STATE
 from ..units import ZERO_CELSIUS_K
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME
 from .format import Recording
-from .problems import RecordingError
 from .measurement import GridTrajectory, MeasurementModel
+from .problems import RecordingError
 
 CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
 REPLAY_STEP_S = 0.1
 HALF_SPEED_SQUARED = "half_speed_squared_m2ps2"  # v^2 / 2, compared over distance
 # Below this measured speed a train counts as standing (sensor noise is a few cm/s).
 STANDSTILL_SPEED_MPS = 0.1
+
 
 def simulate_grid(
     model: EffectedModel,
@@ -99,7 +100,9 @@ def simulate_steps(model: EffectedModel, pressure: PrescribedPressure, step_s: f
     return _grid(sim, step_s, discs, trains, decels, pressures)
 
 
-def _grid(sim: Simulator, step_s: float, discs: np.ndarray, trains: np.ndarray, decels: np.ndarray, pressures: np.ndarray) -> GridTrajectory:
+def _grid(
+    sim: Simulator, step_s: float, discs: np.ndarray, trains: np.ndarray, decels: np.ndarray, pressures: np.ndarray
+) -> GridTrajectory:
     """The grid series from the states at every step: discs (T, 6, A, k, B), trains (T, 6, B),
     decelerations (T, B), cylinder pressures (T, B, A)."""
     n_rows, n_discs = len(discs), sim.plant.n_discs
@@ -416,7 +419,9 @@ def compare(replayed: Replay) -> Comparison:
     distance_frame = pd.DataFrame(by_distance)
 
     measured_stop = float(distance[stop]) if stop is not None else float("nan")
-    simulated_stop = float(measurement.channels(np.array([sim_stop]))[POSITION][0]) if np.isfinite(sim_stop) else float("nan")
+    simulated_stop = (
+        float(measurement.channels(np.array([sim_stop]))[POSITION][0]) if np.isfinite(sim_stop) else float("nan")
+    )
     return Comparison(
         replay=replayed,
         residuals=residual_frame,

@@ -50,9 +50,10 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -67,8 +68,8 @@ from ..simulator import BatchConditions, CommandedPressure, Plant
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
 from .format import Recording, write_recording
-from .metadata import RecordingMetadata
 from .measurement import GridTrajectory, MeasurementModel
+from .metadata import RecordingMetadata
 from .replay import simulate_grid
 
 VEHICLE = "emu_8axle"
@@ -117,7 +118,7 @@ class EffectRequest:
             cls.spec(name).check(self.id, value)
 
     @classmethod
-    def parse(cls, text: str) -> "EffectRequest":
+    def parse(cls, text: str) -> EffectRequest:
         """``ID`` or ``ID:name=value[,name=value...]``, e.g. ``gradient:gradient_permil=-5.8``."""
         effect_id, _, rest = text.partition(":")
         parameters: dict[str, float] = {}
@@ -142,7 +143,9 @@ def _draw_parameter(rng: np.random.Generator, spec) -> float:
     return float(f"{rng.uniform(low, high):.4g}")
 
 
-def resolve_effects(requests: Sequence[EffectRequest], rng: np.random.Generator) -> tuple[list[Effect], list[dict[str, Any]]]:
+def resolve_effects(
+    requests: Sequence[EffectRequest], rng: np.random.Generator
+) -> tuple[list[Effect], list[dict[str, Any]]]:
     """The effects with every parameter set (drawn where not given), and their key entries."""
     effects, entries = [], []
     for request in requests:
@@ -218,7 +221,9 @@ def draw_applications(rng: np.random.Generator, vehicle: cfg.Vehicle, n: int) ->
     return applications
 
 
-def _draw_base_offset(rng: np.random.Generator, vehicle: cfg.Vehicle, material: cfg.FrictionMaterial, allowed: Sequence[str]) -> dict[str, Any]:
+def _draw_base_offset(
+    rng: np.random.Generator, vehicle: cfg.Vehicle, material: cfg.FrictionMaterial, allowed: Sequence[str]
+) -> dict[str, Any]:
     # Both kinds' numbers are always drawn so the stream does not depend on the choice.
     kind_index = int(rng.integers(2))
     sign = np.where(rng.random(2) < 0.5, -1.0, 1.0)
@@ -283,9 +288,17 @@ def synthesize(
     for b, app in enumerate(drawn.applications):
         stop = float(grid.stop_time_s[b])
         record = _measure(
-            app, b, grid, model, drawn.cylinders[b], drawn.decel_source, stop, drawn.noise_seeds[b], drawn.vehicle,
+            app,
+            b,
+            grid,
+            model,
+            drawn.cylinders[b],
+            drawn.decel_source,
+            stop,
+            drawn.noise_seeds[b],
+            drawn.vehicle,
             noise_scale,
-        )  # fmt: skip
+        )
         write_recording(record, out_dir)
         recordings.append(record)
         truth_rows.append(_truth_row(drawn, b, model, grid, stop))
@@ -302,9 +315,13 @@ def synthesize(
 
 
 def _check_request(
-    out_dir: Path, key_path: Path, n_recordings: int, effects: Sequence[EffectRequest], random_effects: bool,
+    out_dir: Path,
+    key_path: Path,
+    n_recordings: int,
+    effects: Sequence[EffectRequest],
+    random_effects: bool,
     noise_scale: float,
-) -> None:  # fmt: skip
+) -> None:
     """Refuse a set that cannot be written as asked."""
     if not (math.isfinite(noise_scale) and noise_scale >= 0):
         raise ValueError(f"noise scale {noise_scale}: must be a non-negative finite number")
@@ -496,8 +513,12 @@ def _sensor_channels(recordings: Sequence[Recording], model, grid, decel_source:
     ]
 
 
-def _imprint(with_effect: Sequence[dict[str, np.ndarray]], without_effect: Sequence[dict[str, np.ndarray]],
-             decel_source: str, noise_scale: float) -> dict[str, Any]:
+def _imprint(
+    with_effect: Sequence[dict[str, np.ndarray]],
+    without_effect: Sequence[dict[str, np.ndarray]],
+    decel_source: str,
+    noise_scale: float,
+) -> dict[str, Any]:
     """What an effect leaves in the recordings: the noise-free channels with it against those of
     the same runs without it (:func:`_sensor_channels`), in units of each channel's sensor noise
     (the nominal noise when the set is written noise-free).
@@ -507,8 +528,12 @@ def _imprint(with_effect: Sequence[dict[str, np.ndarray]], without_effect: Seque
     an adhesion limit above every deceleration demanded) is not in the data, and no diagnosis can
     be asked to find it."""
     scale = noise_scale if noise_scale > 0 else 1.0
-    sigma = {SPEED: SENSOR_NOISE[SPEED], DECEL: SENSOR_NOISE[f"decel_mps2_{decel_source}"],
-             DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE], POSITION: SENSOR_NOISE[POSITION]}
+    sigma = {
+        SPEED: SENSOR_NOISE[SPEED],
+        DECEL: SENSOR_NOISE[f"decel_mps2_{decel_source}"],
+        DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE],
+        POSITION: SENSOR_NOISE[POSITION],
+    }
     sum_squares = {channel: 0.0 for channel in sigma}
     largest = {channel: 0.0 for channel in sigma}
     samples = 0
@@ -521,7 +546,9 @@ def _imprint(with_effect: Sequence[dict[str, np.ndarray]], without_effect: Seque
     max_over_noise = max(largest.values())
     return {
         "max_change_over_noise": {channel: round(value, 3) for channel, value in largest.items()},
-        "rms_change_over_noise": {channel: round(math.sqrt(value / samples), 4) for channel, value in sum_squares.items()},
+        "rms_change_over_noise": {
+            channel: round(math.sqrt(value / samples), 4) for channel, value in sum_squares.items()
+        },
         "expressed": bool(max_over_noise >= IMPRINT_EXPRESSED_OVER_NOISE),
     }
 

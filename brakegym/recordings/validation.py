@@ -169,15 +169,19 @@ def _channel_metadata_problems(file: str, header: list[str], metadata: Recording
     if DISC_TEMPERATURE in header and metadata.instrumented_disc is None:
         problems.append(
             RecordingProblem(
-                file, f"has a {DISC_TEMPERATURE!r} column but its metadata names no 'instrumented_disc'",
-                column=DISC_TEMPERATURE, field="instrumented_disc",
+                file,
+                f"has a {DISC_TEMPERATURE!r} column but its metadata names no 'instrumented_disc'",
+                column=DISC_TEMPERATURE,
+                field="instrumented_disc",
             )
         )
     if DECEL in header and metadata.decel_source is None:
         problems.append(
             RecordingProblem(
-                file, f"has a {DECEL!r} column but its metadata gives no 'decel_source'",
-                column=DECEL, field="decel_source",
+                file,
+                f"has a {DECEL!r} column but its metadata gives no 'decel_source'",
+                column=DECEL,
+                field="decel_source",
             )
         )
     return problems

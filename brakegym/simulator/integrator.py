@@ -309,10 +309,27 @@ class Simulator:
             stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
         friction_scale, extra_force_N = self._step_hook_arrays()
         kernel.fused_rk4_steps(
-            self.plant_parameters, self.step_index, n_steps, self.step_s, self.power_coefficient, self.train_constants,
-            friction_scale, extra_force_N, disc0, train0, moving0, self.hold_standing_trains, cylinders, stage_pressures,
-            discs, trains, movings, stop_fraction, self.stop_time_s, clamp,
-        )  # fmt: skip
+            self.plant_parameters,
+            self.step_index,
+            n_steps,
+            self.step_s,
+            self.power_coefficient,
+            self.train_constants,
+            friction_scale,
+            extra_force_N,
+            disc0,
+            train0,
+            moving0,
+            self.hold_standing_trains,
+            cylinders,
+            stage_pressures,
+            discs,
+            trains,
+            movings,
+            stop_fraction,
+            self.stop_time_s,
+            clamp,
+        )
         last = (n_steps - 1) % buffers
         if n_steps == 1:
             disc_start, train_start = disc0, train0
@@ -352,9 +369,18 @@ class Simulator:
         for stage, (time_s, pressure, clamp_force, fraction_for_next) in enumerate(stages):
             scale, extra = self.hooks_at(self.context_at(time_s, disc, train, clamp_force))
             kernel.stage_rates(
-                self.plant_parameters, disc, train, moving0, pressure, scale, extra, self.power_coefficient,
-                self.train_constants, disc_rates[stage], train_rates[stage],
-            )  # fmt: skip
+                self.plant_parameters,
+                disc,
+                train,
+                moving0,
+                pressure,
+                scale,
+                extra,
+                self.power_coefficient,
+                self.train_constants,
+                disc_rates[stage],
+                train_rates[stage],
+            )
             if fraction_for_next is not None:
                 disc = disc0 + fraction_for_next * disc_rates[stage]
                 train = train0 + fraction_for_next * train_rates[stage]
@@ -362,9 +388,21 @@ class Simulator:
         moving1 = np.empty_like(moving0)
         stop_fraction = np.empty(self.n_trains)
         kernel.finish_rk4_step(
-            self.plant_parameters, t, h, disc0, train0, moving0, self.hold_standing_trains, disc_rates, train_rates, disc1,
-            train1, moving1, stop_fraction, self.stop_time_s,
-        )  # fmt: skip
+            self.plant_parameters,
+            t,
+            h,
+            disc0,
+            train0,
+            moving0,
+            self.hold_standing_trains,
+            disc_rates,
+            train_rates,
+            disc1,
+            train1,
+            moving1,
+            stop_fraction,
+            self.stop_time_s,
+        )
         record = StepRecord(t, disc0, train0, f_start, f_end, stop_fraction)
         return self.finish_step(record, disc1, train1, moving1)
 
@@ -383,14 +421,18 @@ class Simulator:
         slowing, zero at standstill)."""
         return self.deceleration_at_mps2(self.disc, self.train, self.moving, self.pressure.pressure_bar)
 
-    def deceleration_at_mps2(self, disc: np.ndarray, train: np.ndarray, moving: np.ndarray, pressure_bar: np.ndarray) -> np.ndarray:
+    def deceleration_at_mps2(
+        self, disc: np.ndarray, train: np.ndarray, moving: np.ndarray, pressure_bar: np.ndarray
+    ) -> np.ndarray:
         """:meth:`deceleration_mps2` at another state of these trains (a row of
         :meth:`trajectory`), with the cylinder pressures (B, A) of that moment; hooks that
         depend on the state are evaluated at the current state, so use it without them."""
         clamp_force = np.ascontiguousarray(self.clamp_force_N(pressure_bar), dtype=float)
         scale, extra = self._step_hook_arrays()  # constant hooks too
         out = np.empty(self.n_trains)
-        kernel.deceleration_mps2(self.plant_parameters, disc, train, moving, clamp_force, scale, extra, self.train_constants, out)
+        kernel.deceleration_mps2(
+            self.plant_parameters, disc, train, moving, clamp_force, scale, extra, self.train_constants, out
+        )
         return out
 
     def state_view(self, name: str) -> np.ndarray:

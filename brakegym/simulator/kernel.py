@@ -373,7 +373,8 @@ def _rates_of_tile(
     """Time derivatives of the tile's disc states ``disc`` (6, S) and train states at the speeds
     ``speed_mps`` (T,), into row ``stage`` of ``disc_rates`` (4, 6, S) and ``train_rates``
     (4, 6, T). Per-slot inputs (S,): clamp force and term, friction scale, power coefficient,
-    ambient temperature; per-train inputs (T,) and ``constants`` (N_TRAIN_CONSTANTS, T). ``train_work`` (4 arrays (T,)) and ``slot_work`` (10 arrays (S,))
+    ambient temperature; per-train inputs (T,) and ``constants`` (N_TRAIN_CONSTANTS, T).
+    ``train_work`` (4 arrays (T,)) and ``slot_work`` (10 arrays (S,))
     are scratch. The same as ``NumpyReferenceSimulator._rates``."""
     n_slots = n_discs * n_tile
     ratio = parameters[RADIUS_RATIO]
@@ -517,7 +518,10 @@ def _rates_of_tile(
         speed = speed_mps[t]
         brake = friction_sum[t] * ratio
         resistance = running_resistance_N(
-            speed, constants[RESISTANCE_A_N, t], constants[RESISTANCE_B_N_PER_MPS, t], constants[RESISTANCE_C_N_PER_MPS2, t]
+            speed,
+            constants[RESISTANCE_A_N, t],
+            constants[RESISTANCE_B_N_PER_MPS, t],
+            constants[RESISTANCE_C_N_PER_MPS2, t],
         )
         total = brake + resistance + extra_force_N[t]
         train_rates[stage, SPEED, t] = choose(moving[t], -total * constants[INVERSE_MASS_PER_KG, t], 0.0)
@@ -719,9 +723,17 @@ def fused_rk4_steps(
     # run time that they do not overlap) but not over rows of one array at unknown distances.
     train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
     slot_work = (
-        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
-        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
-    )  # fmt: skip
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+    )
     history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar = cylinders
     commanded = history.shape[0] > 0
     power_per_disc = power_coefficient.reshape(1, n_axles, per_axle, n_trains)
@@ -759,9 +771,17 @@ def fused_rk4_steps(
                 stage_speed[t] = train_start[SPEED, t]
             for moment in range(3):
                 _clamp_of_tile(
-                    parameters, stage_pressure_bar[first_pressure_row + moment], tile_start, n_tile, per_axle, axle_clamp_N[moment],
-                    axle_clamp_term[moment], slot_clamp_N[moment], clamp_term[moment], weighted_clamp_N[moment],
-                )  # fmt: skip
+                    parameters,
+                    stage_pressure_bar[first_pressure_row + moment],
+                    tile_start,
+                    n_tile,
+                    per_axle,
+                    axle_clamp_N[moment],
+                    axle_clamp_term[moment],
+                    slot_clamp_N[moment],
+                    clamp_term[moment],
+                    weighted_clamp_N[moment],
+                )
             if n == n_steps - 1:
                 for axle in range(n_axles):
                     for t in range(n_tile):
@@ -791,19 +811,58 @@ def fused_rk4_steps(
                 else:
                     fraction = step_s if stage == 3 else 0.5 * step_s
                     _advance_tile(
-                        n_slots, n_tile, disc_start, train_start, disc_rates, train_rates, stage - 1, fraction,
-                        disc_stage, stage_speed,
-                    )  # fmt: skip
+                        n_slots,
+                        n_tile,
+                        disc_start,
+                        train_start,
+                        disc_rates,
+                        train_rates,
+                        stage - 1,
+                        fraction,
+                        disc_stage,
+                        stage_speed,
+                    )
                     state = disc_stage
                 _rates_of_tile(
-                    parameters, n_discs, n_tile, state, stage_speed, moving, slot_clamp_N[moment], clamp_term[moment],
-                    weighted_clamp_N[moment], slot_friction_scale[0], tile_extra_force_N[0], per_slot[0], per_slot[1], per_train,
-                    disc_rates, train_rates, stage, train_work, slot_work,
-                )  # fmt: skip
+                    parameters,
+                    n_discs,
+                    n_tile,
+                    state,
+                    stage_speed,
+                    moving,
+                    slot_clamp_N[moment],
+                    clamp_term[moment],
+                    weighted_clamp_N[moment],
+                    slot_friction_scale[0],
+                    tile_extra_force_N[0],
+                    per_slot[0],
+                    per_slot[1],
+                    per_train,
+                    disc_rates,
+                    train_rates,
+                    stage,
+                    train_work,
+                    slot_work,
+                )
             _finish_tile(
-                parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
-                train_rates, moving, hold_standing, disc_end, train_end, stop_fraction, stop_time_s, moving_out,
-            )  # fmt: skip
+                parameters,
+                time_s,
+                step_s,
+                tile_start,
+                n_discs,
+                n_tile,
+                disc_start,
+                train_start,
+                disc_rates,
+                train_rates,
+                moving,
+                hold_standing,
+                disc_end,
+                train_end,
+                stop_fraction,
+                stop_time_s,
+                moving_out,
+            )
             _scatter_discs(disc_end, tile_start, n_tile, disc_out)
             for row in range(N_TRAIN_STATES):
                 for t in range(n_tile):
@@ -847,9 +906,17 @@ def stage_rates(
     per_slot = np.empty((3, slots))  # power coefficient, friction scale, ambient
     train_work = (np.empty(tile), np.empty(tile), np.empty(tile), np.empty(tile))
     slot_work = (
-        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
-        np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots), np.empty(slots),
-    )  # fmt: skip
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+        np.empty(slots),
+    )
     per_disc = np.empty((2, n_axles, per_axle, n_trains))
     per_disc[0] = power_coefficient
     per_disc[1] = friction_scale
@@ -864,14 +931,38 @@ def stage_rates(
             moving[t] = moving0[tile_start + t]
             extra_of_tile[t] = extra_force_N[tile_start + t]
         _clamp_of_tile(
-            parameters, pressure_bar, tile_start, n_tile, per_axle, axle_clamp_N, axle_clamp_term, clamp_N, clamp_term,
+            parameters,
+            pressure_bar,
+            tile_start,
+            n_tile,
+            per_axle,
+            axle_clamp_N,
+            axle_clamp_term,
+            clamp_N,
+            clamp_term,
             weighted_clamp_N,
-        )  # fmt: skip
+        )
         _rates_of_tile(
-            parameters, n_discs, n_tile, state, train_of_tile[SPEED], moving, clamp_N, clamp_term, weighted_clamp_N,
-            per_slot[1], extra_of_tile, per_slot[0], per_slot[2], per_train, rates, rates_of_train, 0, train_work,
+            parameters,
+            n_discs,
+            n_tile,
+            state,
+            train_of_tile[SPEED],
+            moving,
+            clamp_N,
+            clamp_term,
+            weighted_clamp_N,
+            per_slot[1],
+            extra_of_tile,
+            per_slot[0],
+            per_slot[2],
+            per_train,
+            rates,
+            rates_of_train,
+            0,
+            train_work,
             slot_work,
-        )  # fmt: skip
+        )
         _scatter_discs(rates[0], tile_start, n_tile, disc_rates)
         for row in range(N_TRAIN_STATES):
             for t in range(n_tile):
@@ -919,9 +1010,24 @@ def finish_rk4_step(
         for t in range(n_tile):
             moving[t] = moving0[tile_start + t]
         _finish_tile(
-            parameters, time_s, step_s, tile_start, n_discs, n_tile, disc_start, train_start, disc_rates,
-            train_rates, moving, hold_standing, disc_end, train_end, stop_fraction, stop_time_s, moving1,
-        )  # fmt: skip
+            parameters,
+            time_s,
+            step_s,
+            tile_start,
+            n_discs,
+            n_tile,
+            disc_start,
+            train_start,
+            disc_rates,
+            train_rates,
+            moving,
+            hold_standing,
+            disc_end,
+            train_end,
+            stop_fraction,
+            stop_time_s,
+            moving1,
+        )
         _scatter_discs(disc_end, tile_start, n_tile, disc1)
         for row in range(N_TRAIN_STATES):
             for t in range(n_tile):
@@ -974,24 +1080,66 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
     stop_fraction, stop_time = np.empty(1), np.full(1, np.nan)
     for history_length in (0, 2):  # given stage pressures, and the commanded cylinders
         cylinders = CylinderState(
-            np.zeros((history_length, 1, n_axles)), np.zeros(1, dtype=np.int64), per_train, per_train,
-            pressure.copy(), pressure.copy(),
-        )  # fmt: skip
+            np.zeros((history_length, 1, n_axles)),
+            np.zeros(1, dtype=np.int64),
+            per_train,
+            per_train,
+            pressure.copy(),
+            pressure.copy(),
+        )
         fused_rk4_steps(
-            parameters, 0, steps, 0.1, per_disc, constants, per_disc, np.zeros(1), disc, train, moving, False, cylinders,
+            parameters,
+            0,
+            steps,
+            0.1,
+            per_disc,
+            constants,
+            per_disc,
+            np.zeros(1),
+            disc,
+            train,
+            moving,
+            False,
+            cylinders,
             np.zeros((3, 1, n_axles)),
-            discs, trains, movings, stop_fraction, stop_time, np.zeros((2, n_axles, 1, 1)),
-        )  # fmt: skip
+            discs,
+            trains,
+            movings,
+            stop_fraction,
+            stop_time,
+            np.zeros((2, n_axles, 1, 1)),
+        )
     disc_rates, train_rates = np.empty((4, *disc.shape)), np.empty((4, *train.shape))
     for stage in range(4):
         stage_rates(
-            parameters, disc, train, moving, pressure, per_disc, per_train, per_disc, constants, disc_rates[stage],
+            parameters,
+            disc,
+            train,
+            moving,
+            pressure,
+            per_disc,
+            per_train,
+            per_disc,
+            constants,
+            disc_rates[stage],
             train_rates[stage],
-        )  # fmt: skip
+        )
     finish_rk4_step(
-        parameters, 0.0, 0.1, disc, train, moving, False, disc_rates, train_rates, discs[0], trains[0], movings[0],
-        stop_fraction, stop_time,
-    )  # fmt: skip
+        parameters,
+        0.0,
+        0.1,
+        disc,
+        train,
+        moving,
+        False,
+        disc_rates,
+        train_rates,
+        discs[0],
+        trains[0],
+        movings[0],
+        stop_fraction,
+        stop_time,
+    )
     deceleration_mps2(parameters, disc, train, moving, clamp, per_disc, per_train, constants, np.empty(1))
 
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic, overload
@@ -104,7 +103,9 @@ def fused_multiply_add(typingctx, a, b, c):
     def codegen(context, builder, signature, args):
         double = ir.DoubleType()
         function = builder.module.declare_intrinsic("llvm.fma", [double], ir.FunctionType(double, [double] * 3))
-        return builder.call(function, [context.cast(builder, v, t, types.float64) for v, t in zip(args, signature.args)])
+        return builder.call(
+            function, [context.cast(builder, v, t, types.float64) for v, t in zip(args, signature.args)]
+        )
 
     return types.float64(types.float64, types.float64, types.float64), codegen
 

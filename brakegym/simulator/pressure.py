@@ -86,9 +86,15 @@ class CommandedPressure:
         """The pressures at the start, middle and end of the coming step (:class:`PressureSource`)."""
         stages = np.empty_like(self._stages)  # new arrays each step: the caller may keep them
         kernel.commanded_pressures(
-            self._step, self._history, self._dead_steps, self._half_lag, self._full_lag, self._pressure, self._command,
+            self._step,
+            self._history,
+            self._dead_steps,
+            self._half_lag,
+            self._full_lag,
+            self._pressure,
+            self._command,
             stages,
-        )  # fmt: skip
+        )
         self._stages = stages
         return stages[0], stages[1], stages[2]
 
@@ -175,7 +181,9 @@ class PrescribedPressure:
         lower = np.clip(index, 0, last - 1) if last > 0 else np.zeros_like(index)
         upper = np.minimum(lower + 1, last)
         weight = np.zeros(len(times))
-        weight[inside] = (times[inside] - self.time_s[lower[inside]]) / (self.time_s[upper[inside]] - self.time_s[lower[inside]])
+        weight[inside] = (times[inside] - self.time_s[lower[inside]]) / (
+            self.time_s[upper[inside]] - self.time_s[lower[inside]]
+        )
         rows = self.trace_bar[lower] + weight[:, None, None] * (self.trace_bar[upper] - self.trace_bar[lower])
         rows[index < 0] = self.trace_bar[0]
         rows[index >= last] = self.trace_bar[-1]

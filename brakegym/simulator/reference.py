@@ -38,7 +38,9 @@ class NumpyReferenceSimulator(Simulator):
         """Friction force per disc and the train forces at one state."""
         plant = self.plant
         mu = plant.friction.bounded(disc[MU])
-        context = self.context_at(time_s, disc, train, clamp_force) if self.extra_forces or self.friction_modifiers else None
+        context = (
+            self.context_at(time_s, disc, train, clamp_force) if self.extra_forces or self.friction_modifiers else None
+        )
         effective = mu * friction_scale(self.friction_modifiers, context) if self.friction_modifiers else mu  # type: ignore[arg-type]
         friction_force = effective * clamp_force
         brake = brake_force_N(friction_force, plant.friction_radius_m, plant.wheel_radius_m)

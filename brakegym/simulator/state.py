@@ -52,9 +52,13 @@ class CylinderState(NamedTuple):
     command_bar: np.ndarray  # (B, A): the command given now
 
     @classmethod
-    def none(cls, n_trains: int, n_axles: int) -> "CylinderState":
+    def none(cls, n_trains: int, n_axles: int) -> CylinderState:
         zeros = np.zeros(n_trains)
         return cls(
-            np.zeros((0, n_trains, n_axles)), np.zeros(n_trains, dtype=np.int64), zeros, zeros,
-            np.zeros((n_trains, n_axles)), np.zeros((n_trains, n_axles)),
-        )  # fmt: skip
+            np.zeros((0, n_trains, n_axles)),
+            np.zeros(n_trains, dtype=np.int64),
+            zeros,
+            zeros,
+            np.zeros((n_trains, n_axles)),
+            np.zeros((n_trains, n_axles)),
+        )

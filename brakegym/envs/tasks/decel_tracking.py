@@ -27,6 +27,7 @@ from ..task import BrakeTask, Outcome, copies, of_train
 if TYPE_CHECKING:
     from ..fleet import TrainFleet
 
+
 class DecelTrackingConfig(BrakeEnvConfig):
     """Follow a demanded deceleration: service-brake steps as a brake control unit receives them."""
 
@@ -35,7 +36,7 @@ class DecelTrackingConfig(BrakeEnvConfig):
     demand_hold_s: Range  # how long each level is held
 
     @model_validator(mode="after")
-    def _levels_positive(self) -> "DecelTrackingConfig":
+    def _levels_positive(self) -> DecelTrackingConfig:
         bad = [level for level in self.demand_levels_mps2 if not level > 0]
         if bad:
             raise ValueError(f"demand_levels_mps2 must be positive, got {bad}")
@@ -66,16 +67,22 @@ class DecelTracking(BrakeTask):
 
     def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         config, n = self.config, len(index)
-        levels = np.asarray(config.demand_levels_mps2)[rng.integers(0, len(config.demand_levels_mps2), (n, self.n_segments))]
+        levels = np.asarray(config.demand_levels_mps2)[
+            rng.integers(0, len(config.demand_levels_mps2), (n, self.n_segments))
+        ]
         holds = rng.uniform(config.demand_hold_s.low, config.demand_hold_s.high, (n, self.n_segments))
         for name, drawn in (("demand_mps2", levels), ("demand_hold_s", holds)):
             if name in options:
                 given = np.atleast_1d(np.asarray(options[name], dtype=float))
                 if given.ndim != 1 or len(given) > self.n_segments or np.any(~(given > 0)):
-                    raise ValueError(f"reset option {name!r} = {options[name]}: need 1..{self.n_segments} positive values")
+                    raise ValueError(
+                        f"reset option {name!r} = {options[name]}: need 1..{self.n_segments} positive values"
+                    )
                 drawn[:, : len(given)] = given
                 drawn[:, len(given) :] = given[-1]  # the last value holds to the end
-        starts = config.first_demand_time_s + np.concatenate([np.zeros((n, 1)), np.cumsum(holds, axis=1)[:, :-1]], axis=1)
+        starts = config.first_demand_time_s + np.concatenate(
+            [np.zeros((n, 1)), np.cumsum(holds, axis=1)[:, :-1]], axis=1
+        )
         self.switch_time_s[index] = starts
         self.level_mps2[index] = levels
         self.demand_in_last_step[index] = 0.0

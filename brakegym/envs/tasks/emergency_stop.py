@@ -25,6 +25,7 @@ from ..task import BrakeTask, Outcome, copies, of_train
 if TYPE_CHECKING:
     from ..fleet import TrainFleet
 
+
 class EmergencyStopConfig(BrakeEnvConfig):
     """Stop as short as possible without any disc exceeding its temperature limit."""
 

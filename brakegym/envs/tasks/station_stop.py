@@ -79,13 +79,17 @@ class StationStop(BrakeTask):
 
     def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         config = self.config
-        required = rng.uniform(config.required_deceleration_mps2.low, config.required_deceleration_mps2.high, len(index))
+        required = rng.uniform(
+            config.required_deceleration_mps2.low, config.required_deceleration_mps2.high, len(index)
+        )
         speed = self.fleet.episodes.initial_speed_mps[index]
         mark = speed**2 / (2.0 * required) + speed * config.response_allowance_s
         if "distance_to_mark_m" in options:
             mark = option_values(options["distance_to_mark_m"], len(index), "distance_to_mark_m")
             if np.any(~(mark > 0)):
-                raise ValueError(f"reset option 'distance_to_mark_m' = {options['distance_to_mark_m']}: must be positive")
+                raise ValueError(
+                    f"reset option 'distance_to_mark_m' = {options['distance_to_mark_m']}: must be positive"
+                )
         self.mark_m[index] = mark
         self.overran[index] = False
 
@@ -130,7 +134,9 @@ class StationStop(BrakeTask):
             )
         else:  # on most steps no episode ends: the same zeros without computing the terminal terms
             accuracy = np.zeros(self.n)
-        return Outcome({"tracking": tracking, "jerk": self._jerk_term(), "stop_accuracy": accuracy}, terminated, success)
+        return Outcome(
+            {"tracking": tracking, "jerk": self._jerk_term(), "stop_accuracy": accuracy}, terminated, success
+        )
 
     def episode_info(self, train: int | None = None) -> dict[str, Any]:
         info = {
