@@ -7,6 +7,8 @@ and builds the laws, plants and random draws from it is here.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from . import config as cfg
@@ -155,23 +157,38 @@ def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
     )
 
 
-def draw_scatter(
-    rng: np.random.Generator, vehicle: cfg.Vehicle, setup: cfg.ScatterSetup, n_applications: int
-) -> tuple[FrictionDraw, np.ndarray]:
-    """The scatter of ``n_applications`` stops of ``vehicle`` in ``setup``: every disc's friction
-    draw (paper Eq. 13), then each application's running resistance A, in that order from ``rng``
-    (the order every campaign, environment and synthetic set uses, so that a seed means the same
-    draws everywhere)."""
-    partition = scatter_partition(setup)
-    friction = draw_friction(
-        rng,
-        stochastic_friction(cfg.load("materials", vehicle.material)),
-        partition,
-        n_applications,
-        (vehicle.n_axles, vehicle.discs_per_axle),
-    )
+@dataclass(frozen=True)
+class TrainScatter:
+    """The scatter of a vehicle's stops in a set-up, built once from the configs: every disc's
+    friction (paper Eq. 13) and each application's running resistance A."""
+
+    friction: StochasticFriction
+    partition: ScatterPartition
+    resistance_A_N: float
+    resistance_sigma_N: float
+    disc_shape: tuple[int, int]
+
+    def draw(self, rng: np.random.Generator, n_applications: int) -> tuple[FrictionDraw, np.ndarray]:
+        """The friction draw, then the running-resistance draw, in that order from ``rng`` (the
+        order every campaign, environment and synthetic set uses, so that a seed means the same
+        draws everywhere)."""
+        friction = draw_friction(rng, self.friction, self.partition, n_applications, self.disc_shape)
+        resistance = draw_running_resistance(
+            rng, self.resistance_A_N, self.resistance_sigma_N, self.partition, n_applications
+        )
+        return friction, resistance
+
+
+def train_scatter(vehicle: cfg.Vehicle, setup: cfg.ScatterSetup) -> TrainScatter:
+    """The scatter of ``vehicle``'s stops in ``setup``."""
     resistance = vehicle.running_resistance
-    return friction, draw_running_resistance(rng, resistance.A_N, resistance.A_sigma_N, partition, n_applications)
+    return TrainScatter(
+        friction=stochastic_friction(cfg.load("materials", vehicle.material)),
+        partition=scatter_partition(setup),
+        resistance_A_N=resistance.A_N,
+        resistance_sigma_N=resistance.A_sigma_N,
+        disc_shape=(vehicle.n_axles, vehicle.discs_per_axle),
+    )
 
 
 def nominal_draw(material: cfg.FrictionMaterial, n_applications: int, disc_shape: tuple[int, int]) -> FrictionDraw:

@@ -479,3 +479,21 @@ def test_effect_sets_needing_the_staged_path_pass_the_env_checker():
 def test_an_unknown_effect_set_is_refused_naming_the_field():
     with pytest.raises(ConfigError, match="field 'effects' = 'no_such_set'"):
         BrakeEnv("station_stop", config={"effects": "no_such_set"})
+
+
+def test_restarting_trains_reads_no_config_file(monkeypatch):
+    """Everything an episode draws comes from objects built with the environment: a restart (every
+    few steps for some train of a batch) must not read and validate YAML again."""
+    from brakegym.config import library
+
+    env = BrakeVectorEnv("station_stop", num_envs=8, config={"max_episode_time_s": 2.0})
+    env.reset(seed=0)
+    reads = []
+    read_yaml = library.read_yaml
+    monkeypatch.setattr(library, "read_yaml", lambda path: reads.append(path) or read_yaml(path))
+    env.reset(seed=1)
+    restarted = 0
+    for _ in range(40):
+        _, _, terminated, truncated, _ = env.step(np.zeros((8, env.single_action_space.shape[0]), np.float32))
+        restarted += int((terminated | truncated).sum())
+    assert restarted >= 8 and reads == []

@@ -14,7 +14,7 @@ import pandas as pd
 from .. import config as cfg
 from ..applications import DEFAULT_STEP_S, StopSummary, TrainApplication, train_stops
 from ..physics import FrictionDraw
-from ..plants import draw_scatter
+from ..plants import train_scatter
 from ..statistics import sample_statistics
 from .runner import CHUNK_TRAINS, chunks, run_chunks, scatter_back
 
@@ -77,7 +77,7 @@ def train_monte_carlo(
     """Stops of ``vehicle`` for a list of applications with the set-up's scatter. Returns the
     summary (in the order of ``applications``), the friction draw and the resistance draw."""
     n = len(applications)
-    draw, resistance = draw_scatter(np.random.default_rng(seed), vehicle, setup, n)
+    draw, resistance = train_scatter(vehicle, setup).draw(np.random.default_rng(seed), n)
     # Similar stops together, so a chunk finishes at about the same time for all its trains.
     order = np.array(
         sorted(range(n), key=lambda i: (applications[i].initial_speed_kmh, applications[i].brake_mode)), dtype=np.int64

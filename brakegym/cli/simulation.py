@@ -223,9 +223,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _recorded_monte_carlo(vehicle, app, setup, seed, runs, step_s):
     """Monte-Carlo stops with trajectories (the demo wants the curves, not only summaries)."""
     from ..applications import train_stops
-    from ..plants import draw_scatter
+    from ..plants import train_scatter
 
-    draw, resistance = draw_scatter(np.random.default_rng(seed), vehicle, setup, runs)
+    draw, resistance = train_scatter(vehicle, setup).draw(np.random.default_rng(seed), runs)
     summary = train_stops(vehicle, [app] * runs, draw, resistance, step_s=step_s, record_every=1)
     return summary, draw, resistance
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import config as cfg
 from ..effects import RunningResistanceEffect, apply_effects, load_effects
-from ..plants import brake_cylinder, draw_scatter, train_plant
+from ..plants import brake_cylinder, train_plant, train_scatter
 from ..simulator import BatchConditions, CommandedPressure, Simulator
 from ..simulator.state import MU, POSITION, SPEED, T_DISC, T_FRIC
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
@@ -78,7 +78,7 @@ class TrainFleet:
         self.n_trains = n_trains
         self.vehicle: cfg.Vehicle = cfg.load("vehicles", config.vehicle)
         self.material = cfg.load("materials", self.vehicle.material)
-        self.setup = cfg.load("setups", config.setup)
+        self.scatter = train_scatter(self.vehicle, cfg.load("setups", config.setup))
         self.nominal_plant = train_plant(self.vehicle)
         self.cylinder = brake_cylinder(cfg.load("pneumatics", config.actuation))
         self.max_pressure_bar = self.vehicle.max_cylinder_pressure_bar
@@ -201,10 +201,10 @@ class TrainFleet:
         speed_kmh = rng.uniform(config.initial_speed_kmh.low, config.initial_speed_kmh.high, n)
         load_index = rng.integers(0, len(config.loads), n)
         temperature_C = rng.uniform(config.initial_disc_temperature_C.low, config.initial_disc_temperature_C.high, n)
-        setup = self.setup
+        scatter = self.scatter
         if "setup" in options:
-            setup = cfg.load("setups", str(options["setup"]))
-        friction, resistance_A_N = draw_scatter(rng, vehicle, setup, n)
+            scatter = train_scatter(vehicle, cfg.load("setups", str(options["setup"])))
+        friction, resistance_A_N = scatter.draw(rng, n)
 
         if "initial_speed_kmh" in options:
             speed_kmh = option_values(options["initial_speed_kmh"], n, "initial_speed_kmh")

@@ -88,7 +88,7 @@ def simulate_grid(
 def simulate_steps(model: EffectedModel, pressure: PrescribedPressure, step_s: float, n_steps: int) -> GridTrajectory:
     """:func:`simulate_grid` for ``n_steps`` steps of a prescribed pressure: the same numbers,
     with the steps in one compiled call where no hook depends on the state (a replay's fit runs
-    thousands of these, and the per-step calls were most of its time)."""
+    thousands of these, and one Python call per step would be most of its time)."""
     sim = model.simulator(pressure, step_s)
     if sim.has_hooks or n_steps < 1:
         return simulate_grid(model, pressure, step_s, finished=lambda s: s.step_index >= n_steps)

@@ -63,7 +63,7 @@ from .. import config as cfg
 from ..applications import CommandSchedule
 from ..effects import EFFECTS, Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
 from ..physics import BrakeCylinder, RunningResistanceLaw
-from ..plants import brake_cylinder, draw_scatter, train_plant
+from ..plants import brake_cylinder, train_plant, train_scatter
 from ..simulator import BatchConditions, CommandedPressure, Plant
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
@@ -376,7 +376,7 @@ def _draw_set(
     chosen, effect_entries = resolve_effects(requests, effect_rng)
     applications = draw_applications(campaign_rng, vehicle, n)
     decel_source = "accelerometer" if campaign_rng.random() < ACCELEROMETER_PROBABILITY else "speed"
-    draw, drawn_A = draw_scatter(scatter_rng, vehicle, setup, n)
+    draw, drawn_A = train_scatter(vehicle, setup).draw(scatter_rng, n)
     initial_mu, power_coefficient, resistance_A = draw.initial_mu, draw.power_coefficient_per_s, drawn_A
     offset: dict[str, Any] | None = None
     if base_offset:
