@@ -119,3 +119,11 @@ def test_bad_config_file_exit_2(tmp_path, monkeypatch):
     )
     assert result.returncode == 2
     assert str(path) in result.stderr and "time_constant_s" in result.stderr and "-0.8" in result.stderr
+
+
+def test_output_cut_short_by_its_reader_ends_quietly():
+    """``brakegym dyno | head -1``: the reader closes the pipe; no traceback, status 0."""
+    result = subprocess.run(
+        f"{sys.executable} -m brakegym dyno | head -1", shell=True, capture_output=True, text=True, timeout=300
+    )
+    assert result.stdout.startswith("load case") and result.stderr == ""

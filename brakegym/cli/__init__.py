@@ -21,6 +21,7 @@ exit status 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -33,7 +34,11 @@ COMMAND_GROUPS = (simulation, controllers, recordings, identify)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="brakegym", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="brakegym",
+        description="Railway friction brakes after Ehret, Hohmann & Heckmann (2022): simulations, campaigns, "
+        "environments and controllers, diagnosis and identification of recordings.",
+    )
     parser.add_argument("--version", action="version", version=f"brakegym {__version__}")
     parser.add_argument(
         "--config-path",
@@ -63,3 +68,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # time, a command time off the step grid): input errors, not crashes.
         print(f"brakegym {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:
+        # The reader of the output went away (``brakegym dyno | head``): nothing is wrong, and
+        # nothing more can be written; stdout is pointed at devnull so that its flush at exit does
+        # not fail again.
+        sys.stdout = open(os.devnull, "w")
+        return 0
