@@ -241,6 +241,7 @@ def run_commanded_stops(
     extra_forces: Sequence[ExtraForce] = (),
     friction_modifiers: Sequence[FrictionModifier] = (),
     progress: Callable[[int], None] | None = None,
+    max_time_s: float = MAX_STOP_TIME_S,
 ) -> StopSummary:
     """Run a batch of stops, each with a constant command (B, A) switched on at its own time."""
     pressure = CommandedPressure(cylinders, plant.n_axles, step_s)
@@ -254,6 +255,7 @@ def run_commanded_stops(
         schedule,
         record_every=record_every,
         until_time_s=until_time_s,
+        max_time_s=max_time_s,
         progress=progress,
     )
 
@@ -322,6 +324,29 @@ class TrainApplication:
     pad_set: str = "1"
 
 
+def train_conditions(
+    vehicle: cfg.Vehicle,
+    mass_kg: np.ndarray,
+    initial_speed_mps: np.ndarray,
+    draw: FrictionDraw,
+    running_resistance_A_N: np.ndarray,
+) -> BatchConditions:
+    """The conditions of a batch of ``vehicle``'s stops, one per entry of ``mass_kg``: the discs
+    start at the vehicle's initial disc temperature, the air at its ambient temperature."""
+    n = len(mass_kg)
+    initial_K = np.full((n, *train_plant(vehicle).disc_shape), vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K)
+    return BatchConditions(
+        mass_kg=mass_kg,
+        initial_speed_mps=initial_speed_mps,
+        initial_mu=draw.initial_mu,
+        power_coefficient_per_s=draw.power_coefficient_per_s,
+        running_resistance_A_N=running_resistance_A_N,
+        initial_friction_temperature_K=initial_K,
+        initial_disc_temperature_K=initial_K.copy(),
+        ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + ZERO_CELSIUS_K),
+    )
+
+
 def train_stops(
     vehicle: cfg.Vehicle,
     applications: Sequence[TrainApplication],
@@ -348,17 +373,12 @@ def train_stops(
             cylinders_by_name[app.actuation] = brake_cylinder(cfg.load("pneumatics", app.actuation))
     pressures = np.array([vehicle.brake_pressure_bar(app.brake_mode, app.load) for app in applications])
     command = np.repeat(pressures[:, None], plant.n_axles, axis=1)
-    initial_K = vehicle.initial_disc_temperature_C + ZERO_CELSIUS_K
-    disc_shape = (n, *plant.disc_shape)
-    conditions = BatchConditions(
+    conditions = train_conditions(
+        vehicle,
         mass_kg=np.array([vehicle.mass_kg(app.load) for app in applications]),
         initial_speed_mps=np.array([kmh_to_mps(app.initial_speed_kmh) for app in applications]),
-        initial_mu=draw.initial_mu,
-        power_coefficient_per_s=draw.power_coefficient_per_s,
+        draw=draw,
         running_resistance_A_N=np.asarray(running_resistance_A_N, dtype=float),
-        initial_friction_temperature_K=np.full(disc_shape, initial_K),
-        initial_disc_temperature_K=np.full(disc_shape, initial_K),
-        ambient_temperature_K=np.full(n, vehicle.ambient_temperature_C + ZERO_CELSIUS_K),
     )
     return run_commanded_stops(
         plant,

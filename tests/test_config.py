@@ -57,6 +57,21 @@ def test_misspelt_field_is_refused_not_ignored(config_copy):
         cfg.load("discs", "ehret2022_disc")
 
 
+def test_safety_case_probability_above_one(config_copy):
+    path = config_copy / "safety_cases" / "emu_8axle.yaml"
+    _edit(path, lambda d: d["brake_units"].update(failure_probability_per_demand=1.5))
+    with pytest.raises(cfg.ConfigError) as info:
+        cfg.load("safety_cases", "emu_8axle")
+    message = str(info.value)
+    assert str(path) in message and "brake_units.failure_probability_per_demand" in message and "1.5" in message
+
+
+def test_safety_case_input_without_source(config_copy):
+    _edit(config_copy / "safety_cases" / "emu_8axle.yaml", lambda d: d["mass"].pop("source"))
+    with pytest.raises(cfg.ConfigError, match=r"mass.source"):
+        cfg.load("safety_cases", "emu_8axle")
+
+
 def test_unknown_name_lists_known(config_copy):
     with pytest.raises(cfg.ConfigError, match="unknown vehicle 'ice4'.*known: emu_8axle"):
         cfg.load("vehicles", "ice4")

@@ -36,6 +36,7 @@ from .schema import (
     FieldCampaign,
     FrictionMaterial,
     Pneumatics,
+    SafetyCase,
     ScatterSetup,
     Vehicle,
 )
@@ -53,12 +54,14 @@ KINDS: dict[str, type[BaseModel]] = {
     "setups": ScatterSetup,
     "campaigns": FieldCampaign,
     "effects": EffectSet,
+    "safety_cases": SafetyCase,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
 # brakegym.identification); found on the same search path with :func:`find`.
 OTHER_KINDS = ("environments", "agents", "identification")
 # How messages name one config of a kind.
 _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
+    "safety_cases": "safety case",
     "agents": "agent config",
     "identification": "identification config",
 }

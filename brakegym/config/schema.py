@@ -285,6 +285,66 @@ class DynoCampaign(StrictModel):
     rig: str
 
 
+class StochasticInput(StrictModel):
+    """One stochastic input of a safety case, with where its size comes from: a document and its
+    clause, or ``ASSUMED: <why>`` where no source gives it."""
+
+    source: str = Field(min_length=1)
+
+
+class ScatterSetupInput(StochasticInput):
+    """The scatter of paper Eq. 13 and spec Section 5 as a set-up of ``configs/setups/`` has it:
+    its split of the friction's sigmas into a global and an individual part, and whether the
+    running resistance's A scatters."""
+
+    setup: str
+
+
+class MassTolerance(StochasticInput):
+    """The train's mass within its tolerance: m exp(sigma u), u standard normal (log-normal, so
+    that the mass stays positive however far the tail)."""
+
+    relative_sigma: float = Field(ge=0, le=0.5)
+
+
+class PressureTolerance(StochasticInput):
+    """The brake-cylinder pressure within its tolerance: p + sigma u per train or per axle, at most
+    the vehicle's ``max_cylinder_pressure_bar`` (the relief valve's limit) and at least 0."""
+
+    sigma_bar: float = Field(ge=0)
+    per: Literal["train", "axle"]
+
+
+class ResponseTimeScatter(StochasticInput):
+    """The pneumatic response: the cylinder's time constant tau exp(sigma u) per train. The dead
+    time stays fixed: it must be a whole number of integration steps."""
+
+    time_constant_relative_sigma: float = Field(ge=0, le=0.5)
+
+
+class BrakeUnitAvailability(StochasticInput):
+    """Each disc unit fails on a demand with this probability, independently of the others (a
+    failed unit gives no force and no heat)."""
+
+    failure_probability_per_demand: float = Field(ge=0, le=1)
+
+
+class SafetyCase(StrictModel):
+    """The stochastic inputs of one train's emergency braking, for braking-distance tails and the
+    ETCS correction factors (``configs/safety_cases/``)."""
+
+    name: str
+    description: str = ""
+    vehicle: str
+    brake_mode: BrakeMode = "emergency"
+    actuation: str
+    scatter: ScatterSetupInput
+    mass: MassTolerance
+    cylinder_pressure: PressureTolerance
+    response_time: ResponseTimeScatter
+    brake_units: BrakeUnitAvailability
+
+
 class EffectConfig(StrictModel):
     """One effect of :mod:`brakegym.effects` switched on, with every parameter given. The schema
     checks the form; the effect library checks the id, the parameter names and their bounds when

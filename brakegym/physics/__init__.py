@@ -14,7 +14,14 @@ job), and nothing here reads configs: :mod:`brakegym.plants` builds these object
 from .friction import FrictionLaw
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
 from .pneumatics import BrakeCylinder, CaliperLaw
-from .scatter import FrictionDraw, ScatterPartition, StochasticFriction, draw_friction, draw_running_resistance
+from .scatter import (
+    FrictionDraw,
+    ScatterPartition,
+    StochasticFriction,
+    draw_friction,
+    draw_running_resistance,
+    friction_from_normals,
+)
 from .thermal import CooledSurface, DiscThermalModel, HeatFlows
 
 __all__ = [
@@ -31,5 +38,6 @@ __all__ = [
     "brake_force_N",
     "draw_friction",
     "draw_running_resistance",
+    "friction_from_normals",
     "sliding_speed_mps",
 ]

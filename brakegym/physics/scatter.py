@@ -55,20 +55,41 @@ class FrictionDraw:
     power_coefficient_per_s: np.ndarray
 
 
-def _partitioned_normal(
-    rng: np.random.Generator,
-    nominal: float,
-    sigma: float,
-    partition: ScatterPartition,
-    disc_shape: tuple[int, ...],
-    n_applications: int,
+def partitioned(
+    nominal: float, sigma: float, partition: ScatterPartition, global_part: np.ndarray, individual_part: np.ndarray
 ) -> np.ndarray:
-    shape = (n_applications, *disc_shape)
-    # Both draws always happen, whatever the fractions, so that one seed gives the same stream
-    # of random numbers in every set-up (common random numbers across set-ups).
-    global_part = rng.standard_normal((n_applications,) + (1,) * len(disc_shape))
-    individual_part = rng.standard_normal(shape)
+    """One scattered parameter from standard normals: ``nominal + sigma (f_global g + f_individual
+    i)``, ``global_part`` g (applications, 1, 1) shared by the discs of an application and
+    ``individual_part`` i (applications, axles, discs per axle) per disc."""
     return nominal + sigma * (partition.global_fraction * global_part + partition.individual_fraction * individual_part)
+
+
+def friction_from_normals(
+    friction: StochasticFriction,
+    partition: ScatterPartition,
+    global_normals: np.ndarray,
+    individual_normals: np.ndarray,
+) -> FrictionDraw:
+    """The friction of applications given their standard normals: ``global_normals``
+    (applications, 2) and ``individual_normals`` (applications, 2, axles, discs per axle), index 0
+    for mu_0 and 1 for a. A mu_0 outside the model's bounds is refused, not moved."""
+    shared = global_normals[:, :, None, None]
+    initial_mu = partitioned(
+        friction.initial_mu, friction.initial_mu_sigma, partition, shared[:, 0], individual_normals[:, 0]
+    )
+    power_coefficient = partitioned(
+        friction.power_coefficient_per_s,
+        friction.power_coefficient_sigma_per_s,
+        partition,
+        shared[:, 1],
+        individual_normals[:, 1],
+    )
+    if np.any(initial_mu < friction.mu_min) or np.any(initial_mu > friction.mu_max):
+        raise ValueError(
+            f"a drawn initial mu lies outside [{friction.mu_min}, {friction.mu_max}]: the scatter "
+            f"sigma {friction.initial_mu_sigma} of material {friction.material!r} is too large"
+        )
+    return FrictionDraw(initial_mu=initial_mu, power_coefficient_per_s=power_coefficient)
 
 
 def draw_friction(
@@ -79,25 +100,21 @@ def draw_friction(
     disc_shape: tuple[int, int],
 ) -> FrictionDraw:
     """Draw mu_0 and a for ``n_applications`` applications of discs shaped ``disc_shape``
-    (axles, discs per axle). Values are not clipped: mu_0 stays within the model's bounds by
-    construction of the sigmas (a draw outside them is refused, not moved)."""
-    initial_mu = _partitioned_normal(
-        rng, friction.initial_mu, friction.initial_mu_sigma, partition, disc_shape, n_applications
-    )
-    power_coefficient = _partitioned_normal(
-        rng,
-        friction.power_coefficient_per_s,
-        friction.power_coefficient_sigma_per_s,
+    (axles, discs per axle) from ``rng`` (:func:`friction_from_normals`). Values are not clipped:
+    mu_0 stays within the model's bounds by construction of the sigmas (a draw outside them is
+    refused, not moved)."""
+    # The global and the individual normals are always drawn, whatever the fractions, so that one
+    # seed gives the same stream of random numbers in every set-up (common random numbers across
+    # set-ups): for mu_0 first, then for a.
+    shapes = ((n_applications, 1, 1), (n_applications, *disc_shape))
+    mu_global, mu_individual = (rng.standard_normal(shape) for shape in shapes)
+    a_global, a_individual = (rng.standard_normal(shape) for shape in shapes)
+    return friction_from_normals(
+        friction,
         partition,
-        disc_shape,
-        n_applications,
+        np.stack([mu_global[:, 0, 0], a_global[:, 0, 0]], axis=1),
+        np.stack([mu_individual, a_individual], axis=1),
     )
-    if np.any(initial_mu < friction.mu_min) or np.any(initial_mu > friction.mu_max):
-        raise ValueError(
-            f"a drawn initial mu lies outside [{friction.mu_min}, {friction.mu_max}]: the scatter "
-            f"sigma {friction.initial_mu_sigma} of material {friction.material!r} is too large"
-        )
-    return FrictionDraw(initial_mu=initial_mu, power_coefficient_per_s=power_coefficient)
 
 
 def draw_running_resistance(

@@ -1,0 +1,145 @@
+"""Safety cases as response functions (brakegym.safety): the point u = 0 is the nominal stop, each
+input moves the distance the way physics says, and a stop with every brake failed runs out as
+running resistance alone allows."""
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from brakegym import config as cfg
+from brakegym.applications import TrainApplication, train_stops
+from brakegym.safety import BrakingModel, InputLayout
+
+CASE = "emu_8axle"
+
+
+def _case(**changes):
+    """The shipped case with some inputs changed: ``mass={"relative_sigma": 0.0}``."""
+    case = cfg.load("safety_cases", CASE)
+    updates = {name: getattr(case, name).model_copy(update=fields) for name, fields in changes.items()}
+    return case.model_copy(update=updates)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return BrakingModel(cfg.load("safety_cases", CASE), "empty", 160.0)
+
+
+def test_layout_counts_every_input(model):
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    per_axle = InputLayout.of(vehicle.n_axles, vehicle.n_discs, pressure_per_axle=True)
+    per_train = InputLayout.of(vehicle.n_axles, vehicle.n_discs, pressure_per_axle=False)
+    # 2 global + 2 x 16 individual friction, A, mass, pressures, time constant, 16 units
+    assert per_axle.dims == 2 + 32 + 1 + 1 + 8 + 1 + 16 == model.dims
+    assert per_train.dims == per_axle.dims - 7
+    columns = np.concatenate(
+        [
+            np.arange(per_axle.dims)[block]
+            for block in (
+                per_axle.friction_global,
+                per_axle.friction_individual,
+                slice(per_axle.resistance, per_axle.resistance + 1),
+                slice(per_axle.mass, per_axle.mass + 1),
+                per_axle.pressure,
+                slice(per_axle.time_constant, per_axle.time_constant + 1),
+                per_axle.units,
+            )
+        ]
+    )
+    assert np.array_equal(columns, np.arange(per_axle.dims))  # each column once, none left over
+
+
+def test_zero_point_is_the_nominal_stop(model):
+    nominal = train_stops(
+        model.vehicle, [TrainApplication("empty", "emergency", "EP", 160.0, command_time_s=0.0)]
+    ).braking_distance_m
+    assert model(np.zeros((1, model.dims))) == pytest.approx(nominal, rel=1e-12)
+
+
+def test_a_stop_does_not_depend_on_its_batch(model):
+    u = np.random.default_rng(3).standard_normal((6, model.dims))
+    alone = np.concatenate([model(u[i : i + 1]) for i in range(len(u))])
+    assert np.array_equal(model(u), alone)
+
+
+def test_inputs_move_the_distance_the_physical_way(model):
+    layout = model.layout
+
+    def distance_with(column, value):
+        u = np.zeros((1, model.dims))
+        u[0, column] = value
+        return model(u)[0]
+
+    nominal = distance_with(0, 0.0)
+    assert distance_with(layout.mass, 2.0) > nominal  # heavier train
+    assert distance_with(layout.friction_global.start, -2.0) > nominal  # lower mu_0
+    assert distance_with(layout.resistance, -2.0) > nominal  # less running resistance
+    assert distance_with(layout.pressure, -2.0) > nominal  # lower pressure on the first axle
+    assert distance_with(layout.time_constant, 2.0) > nominal  # slower cylinder
+    assert distance_with(layout.units.start, -5.0) > nominal  # first disc unit failed (Phi(-5) < 1e-3)
+    assert distance_with(layout.units.start, -3.0) == nominal  # Phi(-3) > 1e-3: it works
+
+
+def test_mass_scatter_is_a_lognormal_mass(model):
+    """With only the mass scattering, the point u_mass = z is the nominal stop of a train of mass
+    m exp(sigma z)."""
+    z, sigma = 2.5, cfg.load("safety_cases", CASE).mass.relative_sigma
+    u = np.zeros((1, model.dims))
+    u[0, model.layout.mass] = z
+    vehicle = model.vehicle
+    heavier = vehicle.model_copy(
+        update={
+            "loads": {
+                "empty": vehicle.load("empty").model_copy(
+                    update={"mass_per_disc_kg": vehicle.load("empty").mass_per_disc_kg * np.exp(sigma * z)}
+                )
+            }
+        }
+    )
+    expected = train_stops(heavier, [TrainApplication("empty", "emergency", "EP", 160.0, command_time_s=0.0)])
+    assert model(u)[0] == pytest.approx(expected.braking_distance_m[0], rel=1e-12)
+
+
+def test_no_failures_when_units_never_fail():
+    model = BrakingModel(_case(brake_units={"failure_probability_per_demand": 0.0}), "empty", 100.0)
+    u = np.zeros((1, model.dims))
+    u[0, model.layout.units] = -30.0
+    assert model.working_units(u).all()
+
+
+def test_every_brake_failed_coasts_on_running_resistance():
+    """Analytic limit: no brake force, m dv/dt = -(A + B v + C v^2), so the distance is the
+    integral of m v / (A + B v + C v^2) from 0 to v0."""
+    model = BrakingModel(_case(brake_units={"failure_probability_per_demand": 1.0}), "empty", 100.0)
+    resistance, mass = model.vehicle.running_resistance, model.vehicle.mass_kg("empty")
+    expected, _ = integrate.quad(
+        lambda v: mass * v / (resistance.A_N + resistance.B_N_per_mps * v + resistance.C_N_per_mps2 * v * v),
+        0.0,
+        100.0 / 3.6,
+    )
+    assert model(np.zeros((1, model.dims)))[0] == pytest.approx(expected, rel=1e-6)
+
+
+def test_pressure_per_train_moves_every_axle():
+    model = BrakingModel(_case(cylinder_pressure={"per": "train"}), "normal", 100.0)
+    u = np.zeros((2, model.dims))
+    u[1, model.layout.pressure] = 1.0
+    commands = model.pressure_commands_bar(u)
+    assert commands.shape == (2, 8)
+    assert np.allclose(commands[1] - commands[0], model.case.cylinder_pressure.sigma_bar)
+
+
+@pytest.mark.parametrize(
+    ("points", "message"),
+    [(np.zeros((2, 3)), "need \\(n, 61\\)"), (np.full((1, 61), np.nan), "not finite"), (np.zeros(61), "need")],
+)
+def test_bad_points_are_refused(model, points, message):
+    with pytest.raises(ValueError, match=message):
+        model(points)
+
+
+def test_bad_case_inputs_are_refused():
+    with pytest.raises(cfg.ConfigError, match="unknown load 'heavy'"):
+        BrakingModel(cfg.load("safety_cases", CASE), "heavy", 100.0)
+    with pytest.raises(ValueError, match="initial speed -5"):
+        BrakingModel(cfg.load("safety_cases", CASE), "empty", -5.0)
