@@ -1,0 +1,841 @@
+"""Tail estimators for any vectorised response of standard-normal inputs.
+
+A *response* is a function ``response(u) -> y``: ``u`` of shape ``(n, dims)`` holds ``n`` points
+of the standard-normal space, ``y`` of shape ``(n,)`` their responses, larger being worse (a
+braking distance). Exceedance means ``response(u) > threshold``. Each estimator takes either
+
+- ``probability=p``: the quantile ``y_p`` with ``P(response > y_p) = p``, and its 95 % interval;
+- ``threshold=b``: the exceedance probability ``P(response > b)``, and its 95 % interval;
+
+and returns a :class:`TailEstimate`. The response is called with at most ``batch_size`` rows at a
+time, and every row is counted in :attr:`TailEstimate.model_evaluations`.
+
+The methods:
+
+- :func:`brute_force`: plain Monte Carlo on
+  :func:`~brakegym.reliability.streams.standard_normals`. Probability interval: Clopper & Pearson
+  (1934, Biometrika 26, 404-413), exact binomial. Quantile interval: distribution-free, between two
+  order statistics whose ranks come from the binomial distribution of the number of samples below
+  the quantile (David & Nagaraja 2003, *Order Statistics*, 3rd ed., Wiley, on distribution-free
+  intervals for quantiles).
+- :func:`subset_simulation`: Au & Beck (2001, "Estimation of small failure probabilities in high
+  dimensions by subset simulation", Probabilistic Engineering Mechanics 16, 263-277), with the
+  adaptive conditional sampling of Papaioannou, Betz, Zwirglmaier & Straub (2015, "MCMC algorithms
+  for subset simulation", Probabilistic Engineering Mechanics 41, 89-103). The coefficient of
+  variation is Au & Beck's, with the chains' correlation factors.
+- :func:`importance_sampling`: the multilevel cross-entropy method (Rubinstein & Kroese 2004,
+  *The Cross-Entropy Method*, Springer) with a Gaussian importance density of unit covariance whose
+  mean is adapted, then a final importance-sampling run. Probability interval from the standard
+  error of the weighted sample.
+
+Intervals. Subset simulation and importance sampling give a coefficient of variation ``delta`` of
+the probability estimate. Their 95 % probability interval is log-normal, ``P * exp(-+1.96 s)`` with
+``s = sqrt(log(1 + delta**2))``: positive where ``P * (1 -+ 1.96 delta)`` can be negative,
+right-skewed as products of level probabilities and sums of heavy-tailed weights are, and the same
+to first order in ``delta``. A quantile's interval is where the estimated complementary
+distribution function (CCDF) crosses the ends of the probability interval: the threshold whose
+estimated exceedance probability is ``p * exp(+1.96 s)`` (lower end) and the one at
+``p * exp(-1.96 s)`` (upper end); to first order these are the crossings at
+``p / (1 -+ 1.96 delta)``. An end beyond what the samples resolve is infinite.
+
+Empirical CCDF. Quantiles of a (weighted) sample are read off its CCDF with the samples at
+mid-jump plotting positions: sorted from the largest, sample ``m`` sits at the probability
+``S_m - w_m / 2`` (``S_m`` the sum of the ``m`` largest samples' weights over the sample size), and
+the CCDF is linear between them. With equal weights and ``p * n`` a whole number ``m`` this is the
+midpoint of the ``m``-th and ``m + 1``-th largest responses, Au & Beck's intermediate threshold.
+
+Determinism. All randomness comes from :mod:`brakegym.reliability.streams`: the seed's own stream
+for Monte Carlo and subset simulation's level 0, streams derived from the seed
+(:func:`~brakegym.reliability.streams.derived_seed`) for the Markov-chain proposals and the
+importance-sampling runs. The same seed gives the same estimate bit for bit whatever
+``batch_size`` is (for a response that treats rows independently).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .streams import derived_seed, standard_normals
+
+Response = Callable[[np.ndarray], np.ndarray]
+
+# Two-sided 95 %: the standard normal's 0.975 quantile.
+_Z95 = 1.959963984540054
+# Brute force refuses a quantile with fewer expected exceedances than this.
+_MIN_EXPECTED_EXCEEDANCES = 10
+# Papaioannou et al. (2015): target acceptance rate and initial scaling of adaptive conditional sampling.
+_TARGET_ACCEPTANCE = 0.44
+_INITIAL_SCALING = 0.6
+# Stream numbers under the user's seed (derived_seed(seed, stream, level)).
+_PROPOSAL_STREAM = 1
+_CROSS_ENTROPY_STREAM = 2
+_FINAL_STREAM = 3
+# Relative tolerance of "the conditional probability has reached the level probability": p / p0**k
+# is computed in floating point (1e-3 / 0.1**2 = 0.0999...).
+_LEVEL_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class TailEstimate:
+    """A tail estimate: a quantile or an exceedance probability, with 95 % intervals.
+
+    Attributes
+    ----------
+    method
+        ``"brute"``, ``"subset"`` or ``"is"``.
+    target
+        What was given: ``"probability"`` (the quantile was estimated) or ``"threshold"`` (the
+        exceedance probability was estimated).
+    probability
+        The probability asked for, or the estimated exceedance probability of :attr:`threshold`.
+    probability_ci95
+        95 % interval of the exceedance probability of :attr:`threshold`.
+    threshold
+        The response value: the estimated quantile, or the threshold given.
+    threshold_ci95
+        95 % interval of the quantile; ``(threshold, threshold)`` for a given threshold.
+    model_evaluations
+        Response rows evaluated.
+    seconds
+        Wall time of the estimate.
+    coefficient_of_variation
+        Estimated coefficient of variation of the probability estimate at :attr:`threshold`.
+    levels
+        Intermediate thresholds of subset simulation or of the cross-entropy levels; empty for
+        brute force.
+    diagnostics
+        Method-specific figures (JSON-ready): exceedance counts, acceptance rates and correlation
+        factors per level, importance-density means, effective sample sizes.
+    """
+
+    method: str
+    target: str
+    probability: float
+    probability_ci95: tuple[float, float]
+    threshold: float
+    threshold_ci95: tuple[float, float]
+    model_evaluations: int
+    seconds: float
+    coefficient_of_variation: float
+    levels: tuple[float, ...] = ()
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The fields the command line writes, JSON-ready (non-finite numbers become None).
+
+        ``braking_distance_m`` is :attr:`threshold` and ``ci95_m`` is :attr:`threshold_ci95`: the
+        library is generic, but its one user's response is a braking distance in metres, and its
+        output files keep these names. ``threshold`` is :attr:`threshold` too, under its generic
+        name.
+        """
+        return {
+            "probability": _json_number(self.probability),
+            "braking_distance_m": _json_number(self.threshold),
+            "ci95_m": [_json_number(value) for value in self.threshold_ci95],
+            "model_evaluations": self.model_evaluations,
+            "method": self.method,
+            "seconds": self.seconds,
+            "probability_ci95": [_json_number(value) for value in self.probability_ci95],
+            "threshold": _json_number(self.threshold),
+        }
+
+
+def brute_force(
+    response: Response,
+    dims: int,
+    seed: int,
+    n_samples: int,
+    probability: float | None = None,
+    threshold: float | None = None,
+    batch_size: int = 4096,
+) -> TailEstimate:
+    """Plain Monte Carlo on ``standard_normals(seed, arange(n_samples), dims)``.
+
+    Samples are drawn and evaluated one batch at a time. With ``threshold``, only the number of
+    exceedances is kept, and the probability is the fraction of exceedances with a
+    Clopper-Pearson interval. With ``probability``, the quantile is read off the empirical CCDF
+    (see the module's notes) and its interval lies between the order statistics of ranks ``l``
+    and ``u``, the binomial ranks with ``P(l <= B < u) >= 0.95`` for ``B ~ Binomial(n, 1 - p)``,
+    the number of samples below the true quantile; only the largest ``n - l + 2`` responses are
+    kept (in a buffer of twice that plus a batch). The probability interval is Clopper-Pearson's
+    at the estimated quantile. A probability with fewer than 10 expected exceedances (or
+    non-exceedances) in ``n_samples`` is refused.
+
+    Parameters
+    ----------
+    response
+        ``response(u) -> y`` on rows of standard normals (see the module's notes).
+    dims
+        Number of standard-normal inputs.
+    seed
+        The stream of :func:`~brakegym.reliability.streams.standard_normals`.
+    n_samples
+        Monte Carlo sample size.
+    probability, threshold
+        Exactly one: the exceedance probability whose quantile to estimate, or the threshold
+        whose exceedance probability to estimate.
+    batch_size
+        The most rows per call of ``response``.
+    """
+    start = time.perf_counter()
+    _check_target(probability, threshold)
+    n_samples = _check_integer("n_samples", n_samples, 1)
+    if probability is not None:
+        needed = math.ceil(_MIN_EXPECTED_EXCEEDANCES / min(probability, 1.0 - probability))
+        if n_samples < needed:
+            raise ValueError(
+                f"n_samples = {n_samples} is too few for probability = {probability}: "
+                f"{_MIN_EXPECTED_EXCEEDANCES} expected exceedances need n_samples >= {needed}"
+            )
+    evaluate = _CountedResponse(response, dims, batch_size)
+    if probability is None:
+        exceedances = _count_exceedances(evaluate, seed, n_samples, threshold)
+        threshold_ci95 = (float(threshold), float(threshold))
+    else:
+        lower_rank, upper_rank = _binomial_ranks(n_samples, probability)
+        # The interval's lower end is the (n - lower_rank + 1)-th largest response; the estimate lies above it.
+        largest = _largest_responses(evaluate, seed, n_samples, min(n_samples, n_samples - lower_rank + 2))
+        # The m-th largest of n sits at the CCDF position (m - 1/2) / n.
+        threshold = float(np.interp(probability, (np.arange(len(largest)) + 0.5) / n_samples, largest))
+        threshold_ci95 = (float(largest[n_samples - lower_rank]), float(largest[n_samples - upper_rank]))
+        exceedances = int(np.count_nonzero(largest > threshold))
+    estimate = exceedances / n_samples
+    probability_ci95 = _clopper_pearson(exceedances, n_samples)
+    return TailEstimate(
+        method="brute",
+        target="threshold" if probability is None else "probability",
+        probability=float(estimate if probability is None else probability),
+        probability_ci95=probability_ci95,
+        threshold=float(threshold),
+        threshold_ci95=threshold_ci95,
+        model_evaluations=evaluate.evaluations,
+        seconds=time.perf_counter() - start,
+        coefficient_of_variation=math.sqrt((1 - estimate) / exceedances) if exceedances else math.inf,
+        diagnostics={"exceedances": exceedances},
+    )
+
+
+def subset_simulation(
+    response: Response,
+    dims: int,
+    seed: int,
+    probability: float | None = None,
+    threshold: float | None = None,
+    n_per_level: int = 2000,
+    level_probability: float = 0.1,
+    max_levels: int = 20,
+    batch_size: int = 4096,
+) -> TailEstimate:
+    """Subset simulation (Au & Beck 2001) with adaptive conditional sampling (Papaioannou et al.
+    2015).
+
+    Level 0 is Monte Carlo on ``standard_normals(seed, arange(n_per_level), dims)``. Each level's
+    intermediate threshold ``b`` is its ``1 - p0`` quantile (``p0 = level_probability``: the
+    midpoint of the ``N p0``-th and ``N p0 + 1``-th largest responses, ``N = n_per_level``); the
+    ``N p0`` samples above it seed as many Markov chains of ``1 / p0`` states each, which make the
+    next level, conditional on ``response > b``. The chains keep the standard-normal density:
+    component ``j`` of a candidate is drawn from ``N(rho_j u_j, 1 - rho_j**2)``, with
+    ``rho_j = sqrt(1 - sigma_j**2)``, ``sigma_j = min(1, lambda * sigma_hat_j)`` and
+    ``sigma_hat_j`` the seeds' standard deviation; a candidate is accepted when it exceeds ``b``.
+    The chains advance together, one batch of ``N p0`` candidates per step, and the scaling
+    ``lambda`` (0.6 at the start) is adapted after each step towards an acceptance rate of 0.44,
+    ``log lambda += (rate - 0.44) / sqrt(step)`` (Papaioannou et al. adapt after each group of a
+    tenth of the chains, run one after the other; one step of all chains plays the group's part
+    here, so that the response sees batches of ``N p0`` rows). Each level after the first costs
+    ``N (1 - p0)`` evaluations. Rejected candidates repeat a chain's state, so responses tie; the
+    ``N p0`` largest are then taken in sample order, and a tie at ``b`` puts ``b`` on the tied value.
+
+    Stopping: with ``probability=p``, at the first level ``k`` with ``p / p0**k >= p0``; the
+    quantile is read off that level's CCDF at ``p / p0**k``. With ``threshold``, at the first level
+    where at least ``N p0`` samples exceed it; the estimate is ``p0**k`` times the level's fraction
+    of exceedances.
+
+    Coefficient of variation (Au & Beck 2001), summed over levels as if the levels' estimates were
+    uncorrelated: ``delta**2 = sum_i (1 - P_i) / (N P_i) * (1 + gamma_i)`` with ``P_i`` the
+    level's conditional probability, ``gamma_0 = 0`` and, over the ``N p0`` chains of
+    ``N_s = 1 / p0`` states, ``gamma_i = 2 sum_{k=1}^{N_s - 1} (1 - k / N_s) rho_i(k)``, where
+    ``rho_i(k)`` is the lag-``k`` correlation of the chains' exceedance indicators. Intervals as in
+    the module's notes; the CCDF between intermediate thresholds ``b_k`` and ``b_{k+1}`` is ``p0**k``
+    times level ``k``'s.
+
+    The levels' estimates are correlated (the chains of a level start from the previous level's
+    samples), which this ``delta`` leaves out, as Au & Beck say: the intervals are too narrow when
+    there are many levels. Measured over 400 repetitions with the defaults on a linear response in
+    50 dimensions, the 95 % intervals (of the quantile; of the probability) held the exact value in
+    96 % and 92 % of the runs at 1e-3, 94 % and 92 % at 1e-5, 88 % and 84 % at 1e-9, where the
+    estimates spread 1.3 times ``delta``; on a parallel system (``min(u1, u2)``) at 1e-9 in 66 %
+    and 61 %, the estimates about 17 % low on average (subset simulation's bias, of order ``1 / N``:
+    9 % with ``N = 8000``).
+
+    Parameters
+    ----------
+    response, dims, seed, probability, threshold, batch_size
+        As for :func:`brute_force`.
+    n_per_level
+        Samples per level, ``N``; ``N * level_probability`` must be a whole number of at least 2.
+    level_probability
+        ``p0``, the conditional probability of each intermediate level, in (0, 0.5]; ``1 / p0``
+        must be a whole number (0.1, 0.2, 0.25, 0.5), the chains' length.
+    max_levels
+        The most conditional levels after level 0; with ``probability``, too few to reach it is
+        refused at once, with ``threshold`` a RuntimeError says the threshold was not reached.
+
+    Raises
+    ------
+    RuntimeError
+        When the threshold is not reached within ``max_levels`` levels.
+    """
+    start = time.perf_counter()
+    _check_target(probability, threshold)
+    chains, chain_length = _subset_layout(n_per_level, level_probability)
+    max_levels = _check_integer("max_levels", max_levels, 1)
+    if probability is not None:
+        _check_reachable(probability, level_probability, max_levels, n_per_level)
+    evaluate = _CountedResponse(response, dims, batch_size)
+    states = standard_normals(seed, np.arange(n_per_level), evaluate.dims)[None]
+    responses = evaluate(states[0])[None]
+    level_responses, selections, thresholds, acceptance = [responses], [], [], []
+    scaling = _INITIAL_SCALING
+    while not _subset_done(responses, chains, probability, threshold, level_probability, len(thresholds)):
+        if len(thresholds) == max_levels:
+            raise RuntimeError(
+                f"threshold = {threshold} not reached in max_levels = {max_levels} levels: its exceedance "
+                f"probability is below about {level_probability**max_levels:.1e} or the response is bounded"
+            )
+        intermediate, selected = _intermediate_threshold(responses, chains)
+        seeds = np.flatnonzero(selected.ravel())
+        stream = derived_seed(seed, _PROPOSAL_STREAM, len(thresholds))
+        states, responses, scaling, rate = _conditional_sampling_level(
+            evaluate,
+            states.reshape(-1, evaluate.dims)[seeds],
+            responses.ravel()[seeds],
+            intermediate,
+            chain_length,
+            scaling,
+            stream,
+        )
+        level_responses.append(responses)
+        selections.append(selected)
+        thresholds.append(intermediate)
+        acceptance.append(rate)
+    return _subset_estimate(
+        level_responses,
+        selections,
+        thresholds,
+        probability,
+        threshold,
+        level_probability,
+        evaluate.evaluations,
+        start,
+        acceptance,
+    )
+
+
+def importance_sampling(
+    response: Response,
+    dims: int,
+    seed: int,
+    probability: float | None = None,
+    threshold: float | None = None,
+    n_per_level: int = 2000,
+    n_final: int | None = None,
+    level_probability: float = 0.1,
+    max_levels: int = 30,
+    batch_size: int = 4096,
+) -> TailEstimate:
+    """Cross-entropy importance sampling with a mean-shifted standard-normal density.
+
+    The importance density is ``N(mu, I)``. Level ``t`` draws ``n_per_level`` samples from it
+    (weights ``phi(u) / h(u) = exp(-mu.u + |mu|**2 / 2)``); its intermediate threshold ``g_t`` is
+    the sample's ``1 - p0`` quantile (``p0 = level_probability``), or the target once at least
+    ``N p0`` samples exceed it: the given threshold, or with ``probability=p`` the quantile read off
+    the weighted CCDF at ``p``. The new mean is the weighted mean of the samples above ``g_t``, the
+    cross-entropy optimum among unit-covariance Gaussians (Rubinstein & Kroese 2004). Once the
+    target is reached, ``n_final`` fresh samples from the last density give the estimate:
+    ``P = mean(w * 1[y > b])`` with coefficient of variation
+    ``std(w * 1[y > b]) / (P sqrt(n_final))``; a quantile is read off the final sample's weighted
+    CCDF, intervals as in the module's notes.
+
+    Only the mean is adapted: a covariance estimated from a few hundred elite samples in tens of
+    dimensions is noisy, and the weights of such densities degenerate as the dimension grows
+    (Au & Beck 2003, "Important sampling in high dimensions", Structural Safety 25, 139-163;
+    Geyer, Papaioannou & Straub 2019, "Cross entropy-based importance sampling using Gaussian
+    densities revisited", Structural Safety 76, 15-27), while the unit covariance keeps the
+    weights' spread fixed by the shift alone. One Gaussian serves one failure region: a response
+    that exceeds in several separate regions of comparable probability is not what this method
+    is for: on the series system ``max(u1, u2)`` the density settles on one of the two equally
+    probable regions, and the estimate is half the exact value with a narrow interval (or the
+    levels stall). A cross-entropy level whose intermediate threshold does not rise above the
+    previous one stops the estimate with a RuntimeError. Measured over 400 repetitions with the
+    defaults, the 95 % intervals held the exact value in 94 to 97 % of the runs on a linear
+    response in 50 dimensions and on a parallel system (``min(u1, u2)``), from 1e-3 to 1e-9; on
+    the series system in almost none.
+
+    Parameters
+    ----------
+    response, dims, seed, probability, threshold, batch_size
+        As for :func:`brute_force`.
+    n_per_level
+        Samples per cross-entropy level; ``n_per_level * level_probability`` at least 1.
+    n_final
+        Samples of the final importance-sampling run (``n_per_level`` when None).
+    level_probability
+        ``p0``, the fraction of each level's samples above its intermediate threshold, in (0, 0.5].
+    max_levels
+        The most cross-entropy levels; not reaching the target in them is a RuntimeError.
+
+    Raises
+    ------
+    RuntimeError
+        When the cross-entropy levels stall or do not reach the target in ``max_levels``, or the
+        final run has no exceedance.
+    """
+    start = time.perf_counter()
+    _check_target(probability, threshold)
+    n_per_level = _check_integer("n_per_level", n_per_level, 2)
+    n_final = _check_integer("n_final", n_per_level if n_final is None else n_final, 2)
+    _check_level_probability(level_probability)
+    if n_per_level * level_probability < 1:
+        raise ValueError(
+            f"n_per_level = {n_per_level} with level_probability = {level_probability} leaves no sample above "
+            f"the intermediate thresholds: need n_per_level * level_probability >= 1"
+        )
+    max_levels = _check_integer("max_levels", max_levels, 1)
+    evaluate = _CountedResponse(response, dims, batch_size)
+    mean, thresholds, mean_norms = np.zeros(evaluate.dims), [], [0.0]
+    for level in range(max_levels):
+        stream = derived_seed(seed, _CROSS_ENTROPY_STREAM, level)
+        responses, log_weights = _shifted_run(evaluate, mean, stream, n_per_level)
+        intermediate, reached = _cross_entropy_threshold(
+            responses, log_weights, probability, threshold, level_probability
+        )
+        if not reached and thresholds and intermediate <= thresholds[-1]:
+            raise RuntimeError(
+                f"cross entropy stalled at level {level}: intermediate threshold {intermediate:.6g} <= "
+                f"{thresholds[-1]:.6g}; one Gaussian importance density cannot follow this response "
+                f"(several failure regions?)"
+            )
+        mean = _cross_entropy_mean(mean, stream, responses, log_weights, intermediate)
+        mean_norms.append(float(np.linalg.norm(mean)))
+        if reached:
+            break
+        thresholds.append(intermediate)
+    else:
+        raise RuntimeError(
+            f"cross entropy did not reach the target in max_levels = {max_levels} levels "
+            f"(last intermediate threshold {thresholds[-1]:.6g})"
+        )
+    responses, log_weights = _shifted_run(evaluate, mean, derived_seed(seed, _FINAL_STREAM), n_final)
+    estimate = _importance_estimate(responses, np.exp(log_weights), probability, threshold)
+    return TailEstimate(
+        method="is",
+        model_evaluations=evaluate.evaluations,
+        seconds=time.perf_counter() - start,
+        levels=tuple(thresholds),
+        diagnostics={**estimate.pop("diagnostics"), "mean_norms": mean_norms, "importance_mean": mean.tolist()},
+        **estimate,
+    )
+
+
+class _CountedResponse:
+    """The response called in batches of at most ``batch_size`` rows, its output checked, its
+    rows counted."""
+
+    def __init__(self, response: Response, dims: int, batch_size: int) -> None:
+        if not callable(response):
+            raise ValueError(f"response = {response!r}: need a callable response(u) -> y")
+        self.response = response
+        self.dims = _check_integer("dims", dims, 1)
+        self.batch_size = _check_integer("batch_size", batch_size, 1)
+        self.evaluations = 0
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        values = np.empty(len(points))
+        for begin in range(0, len(points), self.batch_size):
+            batch = points[begin : begin + self.batch_size]
+            # Read-only: a response that wrote into its input would corrupt the chains' states.
+            batch = batch.view()
+            batch.flags.writeable = False
+            result = np.asarray(self.response(batch), dtype=np.float64)
+            if result.shape != (len(batch),):
+                raise ValueError(
+                    f"response returned shape {result.shape} for {len(batch)} rows: need one value per row, "
+                    f"shape ({len(batch)},)"
+                )
+            if np.isnan(result).any():
+                raise ValueError(f"response returned NaN for rows {np.flatnonzero(np.isnan(result))[:5] + begin}")
+            values[begin : begin + len(batch)] = result
+            self.evaluations += len(batch)
+        return values
+
+
+def _check_target(probability: float | None, threshold: float | None) -> None:
+    if (probability is None) == (threshold is None):
+        raise ValueError(
+            f"probability = {probability!r}, threshold = {threshold!r}: give exactly one of them "
+            f"(a probability to estimate its quantile, or a threshold to estimate its exceedance probability)"
+        )
+    if probability is not None and not (isinstance(probability, numbers.Real) and 0.0 < probability < 1.0):
+        raise ValueError(f"probability = {probability!r}: need a number in the open interval (0, 1)")
+    if threshold is not None and not (isinstance(threshold, numbers.Real) and math.isfinite(threshold)):
+        raise ValueError(f"threshold = {threshold!r}: need a finite number")
+
+
+def _check_integer(name: str, value: int, minimum: int) -> int:
+    if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < minimum:
+        raise ValueError(f"{name} = {value!r}: need an integer >= {minimum}")
+    return int(value)
+
+
+def _check_level_probability(level_probability: float) -> None:
+    if not (isinstance(level_probability, numbers.Real) and 0.0 < level_probability <= 0.5):
+        raise ValueError(f"level_probability = {level_probability!r}: need a number in (0, 0.5]")
+
+
+def _json_number(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _clopper_pearson(successes: int, trials: int) -> tuple[float, float]:
+    low = 0.0 if successes == 0 else float(stats.beta.ppf(0.025, successes, trials - successes + 1))
+    high = 1.0 if successes == trials else float(stats.beta.ppf(0.975, successes + 1, trials - successes))
+    return low, high
+
+
+def _lognormal_interval(probability: float, coefficient_of_variation: float) -> tuple[float, float]:
+    spread = _Z95 * math.sqrt(math.log1p(coefficient_of_variation**2))
+    return probability * math.exp(-spread), probability * math.exp(spread)
+
+
+def _ccdf_quantiles(values: np.ndarray, weights: np.ndarray | None, probabilities: np.ndarray) -> np.ndarray:
+    """The responses at which the sample's CCDF (mid-jump plotting positions, see the module's
+    notes) takes the given probabilities; +inf above the largest sample's position, -inf below the
+    smallest's. ``weights`` None: equal weights."""
+    order = np.argsort(values, kind="stable")[::-1]
+    descending = values[order]
+    if weights is None:
+        positions = (np.arange(len(values)) + 0.5) / len(values)
+    else:
+        shares = weights[order] / len(values)
+        positions = np.cumsum(shares) - shares / 2
+    probabilities = np.asarray(probabilities, dtype=np.float64)
+    quantiles = np.interp(probabilities, positions, descending)
+    quantiles[probabilities < positions[0]] = np.inf
+    quantiles[probabilities > positions[-1]] = -np.inf
+    return quantiles
+
+
+def _binomial_ranks(n: int, probability: float) -> tuple[int, int]:
+    """The ranks (from the smallest, 1-based) of the order statistics that bound the quantile of
+    exceedance probability ``probability`` with probability at least 0.95, distribution-free
+    (David & Nagaraja 2003).
+
+    ``B``, the number of samples below the true quantile, is Binomial(n, 1 - p); with ``l - 1``
+    the largest count of lower tail ``P(B <= l - 1) <= 0.025`` and ``u - 1`` the smallest with
+    ``P(B <= u - 1) >= 0.975``, the ``l``-th and ``u``-th smallest responses bound the quantile with
+    probability ``P(l <= B <= u - 1) >= 0.95``."""
+    below = stats.binom(n, 1.0 - probability)
+    lower_rank = int(below.ppf(0.025))
+    if below.cdf(lower_rank) <= 0.025:
+        lower_rank += 1
+    return lower_rank, int(below.ppf(0.975)) + 1
+
+
+def _count_exceedances(evaluate: _CountedResponse, seed: int, n_samples: int, threshold: float) -> int:
+    """How many of the Monte Carlo sample's responses exceed ``threshold``, batch by batch."""
+    exceedances = 0
+    for begin in range(0, n_samples, evaluate.batch_size):
+        index = np.arange(begin, min(begin + evaluate.batch_size, n_samples))
+        exceedances += int(np.count_nonzero(evaluate(standard_normals(seed, index, evaluate.dims)) > threshold))
+    return exceedances
+
+
+def _largest_responses(evaluate: _CountedResponse, seed: int, n_samples: int, keep: int) -> np.ndarray:
+    """The ``keep`` largest responses of the Monte Carlo sample, in descending order, evaluated
+    batch by batch into a buffer of ``2 keep + batch_size`` values that is cut back to its ``keep``
+    largest whenever it is full (each cut frees room for at least ``keep`` values, so the cuts cost
+    a constant per sample)."""
+    buffer = np.empty(min(n_samples, 2 * keep + evaluate.batch_size))
+    filled = 0
+    for begin in range(0, n_samples, evaluate.batch_size):
+        index = np.arange(begin, min(begin + evaluate.batch_size, n_samples))
+        values = evaluate(standard_normals(seed, index, evaluate.dims))
+        if filled + len(values) > len(buffer):
+            buffer[:keep] = np.partition(buffer[:filled], filled - keep)[filled - keep :]
+            filled = keep
+        buffer[filled : filled + len(values)] = values
+        filled += len(values)
+    return np.sort(np.partition(buffer[:filled], filled - keep)[filled - keep :])[::-1]
+
+
+def _subset_layout(n_per_level: int, level_probability: float) -> tuple[int, int]:
+    """Number of chains and their length for subset simulation, checked."""
+    n_per_level = _check_integer("n_per_level", n_per_level, 2)
+    _check_level_probability(level_probability)
+    chains = round(n_per_level * level_probability)
+    chain_length = round(1.0 / level_probability)
+    if abs(1.0 / level_probability - chain_length) > 1e-9:
+        raise ValueError(
+            f"level_probability = {level_probability}: 1 / level_probability must be a whole number "
+            f"(the length of the Markov chains), e.g. 0.1, 0.2, 0.25 or 0.5"
+        )
+    if chains < 2 or chains * chain_length != n_per_level:
+        raise ValueError(
+            f"n_per_level = {n_per_level} with level_probability = {level_probability}: need "
+            f"n_per_level * level_probability a whole number >= 2 (the number of Markov chains)"
+        )
+    return chains, chain_length
+
+
+def _check_reachable(probability: float, level_probability: float, max_levels: int, n_per_level: int) -> None:
+    needed = _final_level(probability, level_probability)
+    if needed > max_levels:
+        raise ValueError(
+            f"max_levels = {max_levels} is too few for probability = {probability} with level_probability = "
+            f"{level_probability}: it needs {needed} levels"
+        )
+    if probability > 1.0 - 0.5 / n_per_level:
+        raise ValueError(
+            f"probability = {probability} is too close to 1 for n_per_level = {n_per_level}: need "
+            f"probability <= 1 - 1 / (2 n_per_level)"
+        )
+
+
+def _final_level(probability: float, level_probability: float) -> int:
+    """The level ``k`` whose conditional probability ``p / p0**k`` first reaches ``p0``."""
+    level = 0
+    while probability / level_probability**level < level_probability * (1.0 - _LEVEL_TOLERANCE):
+        level += 1
+    return level
+
+
+def _subset_done(
+    responses: np.ndarray,
+    chains: int,
+    probability: float | None,
+    threshold: float | None,
+    level_probability: float,
+    level: int,
+) -> bool:
+    if probability is not None:
+        return level == _final_level(probability, level_probability)
+    return int(np.count_nonzero(responses > threshold)) >= chains
+
+
+def _intermediate_threshold(responses: np.ndarray, chains: int) -> tuple[float, np.ndarray]:
+    """The midpoint of the ``chains``-th and ``chains + 1``-th largest responses, and the mask of
+    the ``chains`` largest (the seeds).
+
+    Repeated states of the Markov chains tie; the largest are then taken in sample order, so that
+    exactly ``chains`` samples make the level's conditional probability ``chains / N`` (a tie at
+    the threshold puts it on the tied value).
+    """
+    flat = responses.ravel()
+    order = np.argsort(-flat, kind="stable")
+    selected = np.zeros(flat.size, dtype=bool)
+    selected[order[:chains]] = True
+    return float((flat[order[chains - 1]] + flat[order[chains]]) / 2), selected.reshape(responses.shape)
+
+
+def _conditional_sampling_level(
+    evaluate: _CountedResponse,
+    seeds: np.ndarray,
+    seed_responses: np.ndarray,
+    threshold: float,
+    chain_length: int,
+    scaling: float,
+    stream: int,
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """One level of adaptive conditional sampling: chains from ``seeds`` (rows) conditional on
+    ``response > threshold``. Returns the states (chain_length, chains, dims), their responses
+    (chain_length, chains), the adapted scaling and the mean acceptance rate."""
+    chains, dims = seeds.shape
+    seed_spread = seeds.std(axis=0, ddof=1)
+    states = np.empty((chain_length, chains, dims))
+    responses = np.empty((chain_length, chains))
+    states[0], responses[0] = seeds, seed_responses
+    accepted = 0
+    for step in range(1, chain_length):
+        spread = np.minimum(1.0, scaling * seed_spread)
+        noise = standard_normals(stream, np.arange((step - 1) * chains, step * chains), dims)
+        candidates = np.sqrt(1.0 - spread**2) * states[step - 1] + spread * noise
+        candidate_responses = evaluate(candidates)
+        accept = candidate_responses > threshold
+        states[step] = np.where(accept[:, None], candidates, states[step - 1])
+        responses[step] = np.where(accept, candidate_responses, responses[step - 1])
+        rate = float(np.mean(accept))
+        accepted += int(np.count_nonzero(accept))
+        scaling = math.exp(math.log(scaling) + (rate - _TARGET_ACCEPTANCE) / math.sqrt(step))
+    return states, responses, scaling, accepted / max(1, chains * (chain_length - 1))
+
+
+def _chain_correlation_factor(exceeds: np.ndarray) -> float:
+    """Au & Beck's (2001) ``gamma`` of exceedance indicators of shape (chain_length, chains):
+    ``2 sum_k (1 - k / N_s) R(k) / R(0)`` with ``R(k)`` the lag-``k`` covariance pooled over
+    chains. 0 for independent samples (one state per chain) or constant indicators."""
+    chain_length, chains = exceeds.shape
+    share = float(np.mean(exceeds))
+    variance = share * (1.0 - share)
+    if chain_length == 1 or variance == 0.0:
+        return 0.0
+    indicators = exceeds.astype(np.float64)
+    gamma = 0.0
+    for lag in range(1, chain_length):
+        products = float(np.sum(indicators[:-lag] * indicators[lag:])) / ((chain_length - lag) * chains)
+        gamma += (1.0 - lag / chain_length) * (products - share**2) / variance
+    return 2.0 * gamma
+
+
+def _subset_quantiles(
+    level_responses: list[np.ndarray], level_probability: float, probabilities: np.ndarray
+) -> np.ndarray:
+    """Responses at which subset simulation's CCDF takes the given probabilities: ``p0**k`` times
+    level ``k``'s CCDF for probabilities in ``[p0**(k + 1), p0**k]``, the last level below."""
+    quantiles = np.empty(len(probabilities))
+    last = len(level_responses) - 1
+    for position, probability in enumerate(probabilities):
+        level = 0
+        while level < last and probability < level_probability ** (level + 1) * (1.0 + _LEVEL_TOLERANCE):
+            level += 1
+        conditional = np.array([probability / level_probability**level])
+        quantiles[position] = _ccdf_quantiles(level_responses[level].ravel(), None, conditional)[0]
+    return quantiles
+
+
+def _subset_estimate(
+    level_responses: list[np.ndarray],
+    selections: list[np.ndarray],
+    thresholds: list[float],
+    probability: float | None,
+    threshold: float | None,
+    level_probability: float,
+    evaluations: int,
+    start: float,
+    acceptance: list[float],
+) -> TailEstimate:
+    """The estimate, its coefficient of variation (Au & Beck 2001) and intervals from the levels:
+    their responses, and for all but the last the mask of the samples above the next intermediate
+    threshold."""
+    last = len(level_responses) - 1
+    if probability is not None:
+        conditional = probability / level_probability**last
+        threshold = float(_subset_quantiles(level_responses, level_probability, np.array([probability]))[0])
+    else:
+        conditional = float(np.mean(level_responses[-1] > threshold))
+    estimate = level_probability**last * conditional
+    squared_cov, gammas = 0.0, []
+    for level, responses in enumerate(level_responses):
+        share = level_probability if level < last else conditional
+        gamma = _chain_correlation_factor(selections[level] if level < last else responses > threshold)
+        squared_cov += (1.0 - share) / (responses.size * share) * (1.0 + gamma)
+        gammas.append(gamma)
+    cov = math.sqrt(squared_cov)
+    probability_ci95 = _lognormal_interval(estimate, cov)
+    if probability is None:
+        threshold_ci95 = (threshold, threshold)
+    else:
+        ends = _subset_quantiles(level_responses, level_probability, np.array(probability_ci95[::-1]))
+        threshold_ci95 = (float(ends[0]), float(ends[1]))
+    return TailEstimate(
+        method="subset",
+        target="threshold" if probability is None else "probability",
+        probability=float(estimate),
+        probability_ci95=probability_ci95,
+        threshold=float(threshold),
+        threshold_ci95=threshold_ci95,
+        model_evaluations=evaluations,
+        seconds=time.perf_counter() - start,
+        coefficient_of_variation=cov,
+        levels=tuple(thresholds),
+        diagnostics={"acceptance_rates": acceptance, "correlation_factors": gammas},
+    )
+
+
+def _shifted_run(evaluate: _CountedResponse, mean: np.ndarray, stream: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` samples ``mean + z`` (``z`` from ``stream``) evaluated batch by batch: their responses
+    and log importance weights ``log phi(u) - log h(u) = -mean.z - |mean|**2 / 2``."""
+    responses, log_weights = np.empty(n), np.empty(n)
+    offset = 0.5 * float(mean @ mean)
+    for begin in range(0, n, evaluate.batch_size):
+        index = np.arange(begin, min(begin + evaluate.batch_size, n))
+        noise = standard_normals(stream, index, evaluate.dims)
+        responses[index] = evaluate(mean + noise)
+        # A column at a time, not a matrix product: BLAS may sum a row in an order that depends on
+        # the batch, and the weights must not.
+        shift = np.zeros(len(index))
+        for column, component in zip(noise.T, mean):
+            shift += column * component
+        log_weights[index] = -shift - offset
+    return responses, log_weights
+
+
+def _cross_entropy_threshold(
+    responses: np.ndarray,
+    log_weights: np.ndarray,
+    probability: float | None,
+    threshold: float | None,
+    level_probability: float,
+) -> tuple[float, bool]:
+    """A level's intermediate threshold, and whether it is the target itself: the target once at
+    least ``n p0`` samples exceed it, else the sample's ``1 - p0`` quantile."""
+    if probability is not None:
+        weights = np.exp(log_weights)
+        threshold = float(_ccdf_quantiles(responses, weights, np.array([probability]))[0])
+    if math.isfinite(threshold) and np.count_nonzero(responses > threshold) >= level_probability * len(responses):
+        return threshold, True
+    return float(_ccdf_quantiles(responses, None, np.array([level_probability]))[0]), False
+
+
+def _cross_entropy_mean(
+    mean: np.ndarray, stream: int, responses: np.ndarray, log_weights: np.ndarray, threshold: float
+) -> np.ndarray:
+    """The weighted mean of the samples above ``threshold``, their points drawn again from the
+    counter-based ``stream`` (nothing but responses and weights is kept of a run)."""
+    elite = np.flatnonzero(responses > threshold)
+    if elite.size == 0:
+        raise RuntimeError(f"no sample exceeds the intermediate threshold {threshold:.6g}: is the response constant?")
+    weights = np.exp(log_weights[elite] - log_weights[elite].max())
+    points = mean + standard_normals(stream, elite, len(mean))
+    return (weights @ points) / weights.sum()
+
+
+def _importance_estimate(
+    responses: np.ndarray, weights: np.ndarray, probability: float | None, threshold: float | None
+) -> dict[str, Any]:
+    """The final run's estimate (fields of :class:`TailEstimate`) from its responses and weights."""
+    n = len(responses)
+    if probability is not None:
+        threshold = float(_ccdf_quantiles(responses, weights, np.array([probability]))[0])
+    weighted = np.where(responses > threshold, weights, 0.0)
+    estimate = float(weighted.mean())
+    if not (estimate > 0.0 and math.isfinite(threshold)):
+        raise RuntimeError(
+            f"the final importance-sampling run of {n} samples has no exceedance of {threshold}: raise n_final"
+        )
+    cov = float(weighted.std(ddof=1)) / (estimate * math.sqrt(n))
+    probability_ci95 = _lognormal_interval(estimate if probability is None else probability, cov)
+    if probability is None:
+        threshold_ci95 = (threshold, threshold)
+    else:
+        ends = _ccdf_quantiles(responses, weights, np.array(probability_ci95[::-1]))
+        threshold_ci95 = (float(ends[0]), float(ends[1]))
+    return {
+        "target": "threshold" if probability is None else "probability",
+        "probability": estimate if probability is None else float(probability),
+        "probability_ci95": probability_ci95,
+        "threshold": float(threshold),
+        "threshold_ci95": threshold_ci95,
+        "coefficient_of_variation": cov,
+        "diagnostics": {
+            "exceedances": int(np.count_nonzero(weighted)),
+            "effective_sample_size": float(weights.sum() ** 2 / (weights**2).sum()),
+        },
+    }
