@@ -2,8 +2,9 @@
 
     python benchmarks/bench_campaign.py [--baseline-stops 40] [--step 0.2]
 
-Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs) with
-1 and 2 worker processes, then a sample of the same stops (same draws) one ``solve_ivp`` call
+Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs) in one
+process on one kernel thread (the one-core reference), in one process on every kernel thread, and
+in 2 worker processes of one thread each, then a sample of the same stops (same draws) one ``solve_ivp`` call
 each, and prints wall times, disc-steps per second and the per-disc-stop speed ratio, with the
 largest difference in stop distance between the two. Timings on a shared machine vary from run to
 run; the ratio is measured within one run for that reason.
@@ -49,15 +50,25 @@ def main() -> None:
     kernel.warm_up()
     load_s = time.perf_counter() - start
 
+    all_threads = kernel.kernel_threads()
+    variants = {
+        "1 process, 1 thread": (1, 1),
+        f"1 process, {all_threads} threads": (1, all_threads),
+        "2 processes": (2, 1),
+    }
     timings = {}
     summaries = {}
-    for workers in (1, 2):
+    for label, (workers, threads) in variants.items():
+        kernel.set_kernel_threads(threads)
         start = time.perf_counter()
         summary, draw, resistance = train_monte_carlo(vehicle, apps, setup, args.seed, args.step, workers=workers)
-        timings[workers] = time.perf_counter() - start
-        summaries[workers] = summary
+        timings[label] = time.perf_counter() - start
+        summaries[label] = summary
+    kernel.set_kernel_threads(all_threads)
+    first = next(iter(summaries.values()))
     identical = all(
-        np.array_equal(getattr(summaries[1], name), getattr(summaries[2], name), equal_nan=True)
+        np.array_equal(getattr(first, name), getattr(other, name), equal_nan=True)
+        for other in summaries.values()
         for name in ("stop_distance_m", "stop_time_s", "mu_s", "mu_s_eff", "friction_heat_J")
     )
     # Disc-steps each stop needs (to its standstill), not the steps a chunk runs until its last
@@ -80,10 +91,12 @@ def main() -> None:
     stops = len(apps)
     print(f"field campaign MCS-75/25: {stops} train stops x {n_discs} discs, step {args.step} s")
     print(f"  kernels loaded in {load_s:.2f} s before timing (numba start-up and disk cache)")
-    for workers, seconds in timings.items():
+    one_core = timings["1 process, 1 thread"]
+    for label, seconds in timings.items():
         per_disc_stop = seconds / (stops * n_discs)
         print(
-            f"  batched, {workers} process(es): {seconds:6.2f} s   {disc_steps / seconds:12,.0f} disc-steps/s   "
+            f"  batched, {label:<20}: {seconds:6.2f} s ({one_core / seconds:4.2f}x one core)   "
+            f"{disc_steps / seconds:12,.0f} disc-steps/s   "
             f"{1e6 * per_disc_stop:7.2f} us per disc-stop   "
             f"ratio vs solve_ivp {baseline_per_stop / n_discs / per_disc_stop:6.1f}x"
         )
@@ -93,7 +106,7 @@ def main() -> None:
         f"extrapolated {baseline_per_stop * stops:.0f} s for the campaign"
     )
     print(f"  largest stop-distance difference batched vs solve_ivp: {100 * difference:.3f} %")
-    print(f"  1 and 2 processes give identical results: {identical}")
+    print(f"  every variant gives identical results: {identical}")
 
 
 if __name__ == "__main__":

@@ -376,6 +376,47 @@ def test_same_seed_gives_bit_identical_campaign(vehicle):
         np.testing.assert_array_equal(getattr(first, name), getattr(second, name), err_msg=name)
 
 
+@pytest.fixture
+def kernel_threads():
+    """Restores the process's kernel thread count after a test that changes it."""
+    before = kernel.kernel_threads()
+    yield
+    kernel.set_kernel_threads(before)
+
+
+@pytest.mark.usefixtures("kernel_threads")
+def test_threads_give_the_same_stops_bit_for_bit(vehicle, plant):
+    """Tiles shared out over threads: the same numbers as on one thread, whatever the count (the
+    threaded kernel is compiled and run even on a one-core machine, with as many threads as numba
+    allows)."""
+    apps = _mixed_applications() * 3  # several tiles
+    draw = _scatter_draw(vehicle, plant, len(apps), 5)
+    kernel.set_kernel_threads(1)
+    single = train_stops(vehicle, apps, draw=draw)
+    for threads in {2, numba.config.NUMBA_NUM_THREADS} - {1}:
+        if threads > numba.config.NUMBA_NUM_THREADS:
+            continue
+        kernel.set_kernel_threads(threads)
+        threaded = train_stops(vehicle, apps, draw=draw)
+        for name in SUMMARY_FIELDS:
+            np.testing.assert_array_equal(getattr(threaded, name), getattr(single, name), err_msg=name)
+    with pytest.raises(ValueError, match="kernel threads 0"):
+        kernel.set_kernel_threads(0)
+
+
+@pytest.mark.usefixtures("kernel_threads")
+def test_forked_campaign_workers_after_threaded_steps(vehicle):
+    """A campaign's forked workers run single-threaded: a process that has run the threaded kernel
+    can still fork them, and they give the one-process numbers."""
+    campaign = cfg.load("campaigns", "field2022")
+    apps = [app for app in field_applications(campaign)[:6] for _ in range(370)]  # two chunks
+    setup = cfg.load("setups", "mcs-75-25")
+    kernel.set_kernel_threads(numba.config.NUMBA_NUM_THREADS)
+    in_process, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=1)
+    forked, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=2)
+    np.testing.assert_array_equal(forked.braking_distance_m, in_process.braking_distance_m)
+
+
 def test_step_record_keeps_the_pre_step_state(plant):
     rng = np.random.default_rng(2)
     n = 3

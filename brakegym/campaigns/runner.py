@@ -30,6 +30,12 @@ def _call(job: Job) -> StopSummary:
     return function(*arguments)
 
 
+def _single_threaded_worker() -> None:
+    # The workers share the cores already; and a forked process must not touch the parent's
+    # thread pool, which did not come with it.
+    kernel.set_kernel_threads(1)
+
+
 def run_chunks(
     jobs: list[Job],
     workers: int,
@@ -46,7 +52,7 @@ def run_chunks(
     else:
         # Loaded once here, the compiled kernels are inherited by every forked worker.
         kernel.warm_up()
-        pool = multiprocessing.get_context("fork").Pool(min(workers, len(jobs)))
+        pool = multiprocessing.get_context("fork").Pool(min(workers, len(jobs)), initializer=_single_threaded_worker)
         iterator = pool.imap(_call, jobs)
     try:
         for index, result in enumerate(iterator):

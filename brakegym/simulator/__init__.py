@@ -4,13 +4,15 @@
 - :mod:`.plant`: :class:`Plant` (what is braked) and :class:`BatchConditions` (per application).
 - :mod:`.pressure`: where the cylinder pressures come from (commanded, prescribed).
 - :mod:`.hooks`: extension points for forces and friction factors the nominal model leaves out.
-- :mod:`.integrator`: :class:`Simulator`, fixed-step RK4 in compiled steps (:mod:`.kernel`).
+- :mod:`.integrator`: :class:`Simulator`, fixed-step RK4 in compiled steps (:mod:`.kernel`), on
+  every core (:func:`set_kernel_threads` to use fewer).
 - :mod:`.reference`: :class:`NumpyReferenceSimulator`, the same model in numpy.
 - :mod:`.metrics`: per-application stop summaries (paper Eqs. 3 and 15).
 """
 
 from .hooks import ExtraForce, FrictionModifier, StageContext
 from .integrator import Simulator, StepRecord
+from .kernel import kernel_threads, set_kernel_threads
 from .metrics import StopMetrics
 from .plant import BatchConditions, Plant
 from .pressure import CommandedPressure, CylinderState, PrescribedPressure, PressureSource
@@ -33,4 +35,6 @@ __all__ = [
     "StageContext",
     "StepRecord",
     "StopMetrics",
+    "kernel_threads",
+    "set_kernel_threads",
 ]

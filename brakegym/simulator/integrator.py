@@ -308,7 +308,7 @@ class Simulator:
             cylinders = CylinderState.none(n, axles)
             stage_pressures = np.ascontiguousarray(np.stack(self.pressure.stage_pressures_bar()), dtype=float)
         friction_scale, extra_force_N = self._step_hook_arrays()
-        kernel.fused_rk4_steps(
+        kernel.fused_steps(
             self.plant_parameters,
             self.step_index,
             n_steps,

@@ -21,8 +21,15 @@ machine. Numba checks only the source file of the cached function for changes; t
 inline code of other modules, so the cache stamp is widened to a digest of every source they can
 reach (``_CACHE_SOURCES``): edit a physics formula and the kernels compile afresh.
 
-No ``fastmath`` (results must not depend on how LLVM vectorizes or reassociates) and no
-``parallel`` (campaigns run in forked processes, which do not mix with numba's thread pools).
+No ``fastmath``: results must not depend on how LLVM vectorizes or reassociates.
+
+Threads: :func:`fused_steps` shares a batch's tiles out over numba's threads
+(:func:`fused_rk4_steps_threaded`, each thread a consecutive run of tiles that it takes through
+all the steps of the call), up to :func:`kernel_threads` (every core unless
+:func:`set_kernel_threads` says fewer). A train's arithmetic does not depend on its tile, so the
+results are the same bit for bit on any number of threads. Campaign workers are forked processes
+and run on one thread each: a thread pool does not survive a fork, and the processes already share
+the cores.
 """
 
 from __future__ import annotations
@@ -229,11 +236,16 @@ class _KernelCache(caching.FunctionCache):
     _impl_class = _KernelCacheImpl
 
 
-def _compiled(function):
+def _compiled(function, parallel=False):
     """``numba.njit(cache=True)`` with the cache stamp of every physics source."""
-    dispatcher = numba.njit(**JIT_OPTIONS)(function)
+    dispatcher = numba.njit(parallel=parallel, **JIT_OPTIONS)(function)
     dispatcher._cache = _KernelCache(function)  # what Dispatcher.enable_caching() does for cache=True
     return dispatcher
+
+
+def _compiled_threaded(function):
+    """:func:`_compiled` for a kernel whose ``numba.prange`` loop runs on numba's threads."""
+    return _compiled(function, parallel=True)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -635,19 +647,18 @@ def _hold_train(t, n_discs, n_tile, disc_start, train_start, disc_end, train_end
 # Kernels
 
 
-@_compiled
-def commanded_pressures(step, history, dead_steps, half_lag, full_lag, pressure_bar, command_bar, stage_pressure_bar):
-    """The brake cylinders of :class:`~brakegym.simulator.pressure.CommandedPressure` over one step
-    (the dead time and lag of spec Section 4, written once: the class calls this too): store
-    ``command_bar`` (B, A) in the ring ``history`` at ``step``, and write the pressures at the
-    start, middle and end of the step into ``stage_pressure_bar`` (3, B, A)."""
+@numba.njit(**JIT_OPTIONS)
+def _cylinders_over_step(
+    step, first_train, end_train, history, dead_steps, half_lag, full_lag, pressure_bar, command_bar, stage_pressure_bar
+):
+    """:func:`commanded_pressures` for the trains ``first_train`` ... ``end_train - 1``."""
     slots = history.shape[0]
-    n_trains, n_axles = command_bar.shape
+    n_axles = command_bar.shape[1]
     here = step % slots
-    for train in range(n_trains):
+    for train in range(first_train, end_train):
         for axle in range(n_axles):
             history[here, train, axle] = command_bar[train, axle]
-    for train in range(n_trains):
+    for train in range(first_train, end_train):
         target_row = (step - dead_steps[train]) % slots
         for axle in range(n_axles):
             target = history[target_row, train, axle]
@@ -659,7 +670,29 @@ def commanded_pressures(step, history, dead_steps, half_lag, full_lag, pressure_
 
 
 @_compiled
-def fused_rk4_steps(
+def commanded_pressures(step, history, dead_steps, half_lag, full_lag, pressure_bar, command_bar, stage_pressure_bar):
+    """The brake cylinders of :class:`~brakegym.simulator.pressure.CommandedPressure` over one step
+    (the dead time and lag of spec Section 4, written once: the class calls this too): store
+    ``command_bar`` (B, A) in the ring ``history`` at ``step``, and write the pressures at the
+    start, middle and end of the step into ``stage_pressure_bar`` (3, B, A)."""
+    _cylinders_over_step(
+        step,
+        0,
+        command_bar.shape[0],
+        history,
+        dead_steps,
+        half_lag,
+        full_lag,
+        pressure_bar,
+        command_bar,
+        stage_pressure_bar,
+    )
+
+
+@numba.njit(**JIT_OPTIONS)
+def _fused_tiles(
+    first_tile,
+    end_tile,
     parameters,
     first_step,
     n_steps,
@@ -681,22 +714,9 @@ def fused_rk4_steps(
     stop_time_s,
     clamp_N,
 ):
-    """``n_steps`` RK4 steps of every train, with extension hooks only where they are constant
-    (a friction scale per disc ``friction_scale`` (A, k, B), an extra retarding force per train
-    ``extra_force_N`` (B,)), in one call.
-
-    Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,). The cylinder
-    pressures come from ``cylinders``, a :class:`~.state.CylinderState` (a ``CommandedPressure``'s),
-    which the steps advance in place (its pressure too); or, where its history is empty (H = 0),
-    from ``stage_pressure_bar`` (2 n_steps + 1, B, A), the prescribed pressures at every half step
-    (step n at rows 2n, 2n + 1, 2n + 2: its start, middle and end). Step n writes the states
-    ``discs[n % S]``, ``trains[n % S]``, ``movings[n % S]`` for S buffers (two to keep only the
-    last state, one for a single step, ``n_steps`` to keep every step's), and
-    the last step the stop fraction (nan if none) and the clamp forces at its start and end into
-    ``clamp_N`` (2, A, 1, B); sets ``stop_time_s`` of the trains that stop. Time is
-    ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it. With
-    ``hold_standing`` a train standing still at the start of a step keeps its state (a tile of
-    standing trains is not integrated at all)."""
+    """The steps of :func:`fused_rk4_steps` for the trains of tiles ``first_tile`` ...
+    ``end_tile - 1``: each tile runs all ``n_steps`` before the next starts, and writes only its
+    own trains' entries, so that tiles may run on different threads."""
     n_axles, per_axle, n_trains = disc0.shape[1], disc0.shape[2], disc0.shape[3]
     n_discs = n_axles * per_axle
     tile = min(TRAINS_PER_TILE, n_trains)
@@ -741,31 +761,43 @@ def fused_rk4_steps(
     extra_force_per_train = extra_force_N.reshape(1, n_trains)
 
     buffers = discs.shape[0]
-    for n in range(n_steps):
-        step = first_step + n
-        time_s = step * step_s
-        disc_in = disc0 if n == 0 else discs[(n - 1) % buffers]
-        train_in = train0 if n == 0 else trains[(n - 1) % buffers]
-        moving_in = moving0 if n == 0 else movings[(n - 1) % buffers]
-        disc_out, train_out, moving_out = discs[n % buffers], trains[n % buffers], movings[n % buffers]
-        first_pressure_row = 0
-        if commanded:
-            commanded_pressures(
-                step, history, dead_steps, half_lag, full_lag, cylinder_pressure_bar, command_bar, stage_pressure_bar
-            )
-            cylinder_pressure_bar[:, :] = stage_pressure_bar[2]
-        else:
-            first_pressure_row = 2 * n
-        for tile_start in range(0, n_trains, tile):
-            n_tile = min(tile, n_trains - tile_start)
-            n_slots = n_discs * n_tile
+    for tile_index in range(first_tile, end_tile):
+        tile_start = tile_index * tile
+        n_tile = min(tile, n_trains - tile_start)
+        n_slots = n_discs * n_tile
+        _gather_discs(power_per_disc, tile_start, n_tile, per_slot)
+        _gather_discs(friction_scale_per_disc, tile_start, n_tile, slot_friction_scale)
+        _gather_trains(extra_force_per_train, tile_start, n_tile, tile_extra_force_N)
+        _gather_trains(constants, tile_start, n_tile, per_train)
+        _per_slot(n_discs, n_tile, per_train[AMBIENT_K], per_slot[1])
+        for n in range(n_steps):
+            step = first_step + n
+            time_s = step * step_s
+            disc_in = disc0 if n == 0 else discs[(n - 1) % buffers]
+            train_in = train0 if n == 0 else trains[(n - 1) % buffers]
+            moving_in = moving0 if n == 0 else movings[(n - 1) % buffers]
+            disc_out, train_out, moving_out = discs[n % buffers], trains[n % buffers], movings[n % buffers]
+            first_pressure_row = 0
+            if commanded:
+                _cylinders_over_step(
+                    step,
+                    tile_start,
+                    tile_start + n_tile,
+                    history,
+                    dead_steps,
+                    half_lag,
+                    full_lag,
+                    cylinder_pressure_bar,
+                    command_bar,
+                    stage_pressure_bar,
+                )
+                for train in range(tile_start, tile_start + n_tile):
+                    for axle in range(n_axles):
+                        cylinder_pressure_bar[train, axle] = stage_pressure_bar[2, train, axle]
+            else:
+                first_pressure_row = 2 * n
             _gather_discs(disc_in, tile_start, n_tile, disc_start)
             _gather_trains(train_in, tile_start, n_tile, train_start)
-            _gather_discs(power_per_disc, tile_start, n_tile, per_slot)
-            _gather_discs(friction_scale_per_disc, tile_start, n_tile, slot_friction_scale)
-            _gather_trains(extra_force_per_train, tile_start, n_tile, tile_extra_force_N)
-            _gather_trains(constants, tile_start, n_tile, per_train)
-            _per_slot(n_discs, n_tile, per_train[AMBIENT_K], per_slot[1])
             for t in range(n_tile):
                 moving[t] = moving_in[tile_start + t]
                 stage_speed[t] = train_start[SPEED, t]
@@ -867,6 +899,161 @@ def fused_rk4_steps(
             for row in range(N_TRAIN_STATES):
                 for t in range(n_tile):
                     train_out[row, tile_start + t] = train_end[row, t]
+
+
+@numba.njit(**JIT_OPTIONS)
+def _tiles(n_trains):
+    """How many tiles ``n_trains`` trains take."""
+    return -(-n_trains // TRAINS_PER_TILE)
+
+
+@_compiled
+def fused_rk4_steps(
+    parameters,
+    first_step,
+    n_steps,
+    step_s,
+    power_coefficient,
+    constants,
+    friction_scale,
+    extra_force_N,
+    disc0,
+    train0,
+    moving0,
+    hold_standing,
+    cylinders,
+    stage_pressure_bar,
+    discs,
+    trains,
+    movings,
+    stop_fraction,
+    stop_time_s,
+    clamp_N,
+):
+    """``n_steps`` RK4 steps of every train, with extension hooks only where they are constant
+    (a friction scale per disc ``friction_scale`` (A, k, B), an extra retarding force per train
+    ``extra_force_N`` (B,)), in one call.
+
+    Reads the states ``disc0`` (6, A, k, B), ``train0`` (6, B), ``moving0`` (B,). The cylinder
+    pressures come from ``cylinders``, a :class:`~.state.CylinderState` (a ``CommandedPressure``'s),
+    which the steps advance in place (its pressure too); or, where its history is empty (H = 0),
+    from ``stage_pressure_bar`` (2 n_steps + 1, B, A), the prescribed pressures at every half step
+    (step n at rows 2n, 2n + 1, 2n + 2: its start, middle and end). Step n writes the states
+    ``discs[n % S]``, ``trains[n % S]``, ``movings[n % S]`` for S buffers (two to keep only the
+    last state, one for a single step, ``n_steps`` to keep every step's), and
+    the last step the stop fraction (nan if none) and the clamp forces at its start and end into
+    ``clamp_N`` (2, A, 1, B); sets ``stop_time_s`` of the trains that stop. Time is
+    ``(first_step + n) * step_s`` at the start of step n, as the simulator counts it. With
+    ``hold_standing`` a train standing still at the start of a step keeps its state (a tile of
+    standing trains is not integrated at all)."""
+    _fused_tiles(
+        0,
+        _tiles(disc0.shape[3]),
+        parameters,
+        first_step,
+        n_steps,
+        step_s,
+        power_coefficient,
+        constants,
+        friction_scale,
+        extra_force_N,
+        disc0,
+        train0,
+        moving0,
+        hold_standing,
+        cylinders,
+        stage_pressure_bar,
+        discs,
+        trains,
+        movings,
+        stop_fraction,
+        stop_time_s,
+        clamp_N,
+    )
+
+
+@_compiled_threaded
+def fused_rk4_steps_threaded(
+    n_threads,
+    parameters,
+    first_step,
+    n_steps,
+    step_s,
+    power_coefficient,
+    constants,
+    friction_scale,
+    extra_force_N,
+    disc0,
+    train0,
+    moving0,
+    hold_standing,
+    cylinders,
+    stage_pressure_bar,
+    discs,
+    trains,
+    movings,
+    stop_fraction,
+    stop_time_s,
+    clamp_N,
+):
+    """:func:`fused_rk4_steps` with the tiles shared out over ``n_threads`` threads, each a
+    consecutive run of tiles. A train's arithmetic is the same whichever thread runs it."""
+    n_tiles = _tiles(disc0.shape[3])
+    for thread in numba.prange(n_threads):
+        _fused_tiles(
+            thread * n_tiles // n_threads,
+            (thread + 1) * n_tiles // n_threads,
+            parameters,
+            first_step,
+            n_steps,
+            step_s,
+            power_coefficient,
+            constants,
+            friction_scale,
+            extra_force_N,
+            disc0,
+            train0,
+            moving0,
+            hold_standing,
+            cylinders,
+            stage_pressure_bar,
+            discs,
+            trains,
+            movings,
+            stop_fraction,
+            stop_time_s,
+            clamp_N,
+        )
+
+
+# The most threads fused_steps() uses: numba's count (NUMBA_NUM_THREADS, all cores by default)
+# until set_kernel_threads() says otherwise. Campaign workers run with 1: they are forked processes
+# that already share the cores, and a thread pool does not survive a fork.
+_max_threads = numba.config.NUMBA_NUM_THREADS
+
+
+def set_kernel_threads(n_threads: int) -> None:
+    """Let the fused kernel use at most ``n_threads`` threads in this process (1: a single
+    core). Results are the same bit for bit whatever the count."""
+    global _max_threads
+    if not 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"kernel threads {n_threads}: need 1 ... {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS)")
+    _max_threads = n_threads
+
+
+def kernel_threads() -> int:
+    """The most threads the fused kernel uses in this process."""
+    return _max_threads
+
+
+def fused_steps(*arguments) -> None:
+    """:func:`fused_rk4_steps` (same arguments) on one thread per tile of trains, at most
+    :func:`kernel_threads`: a batch of one tile runs on the calling thread."""
+    n_threads = min(_max_threads, int(_tiles(arguments[8].shape[3])))
+    if n_threads > 1:
+        fused_rk4_steps_threaded(n_threads, *arguments)
+    else:
+        fused_rk4_steps(*arguments)
 
 
 @_compiled
@@ -1145,9 +1332,13 @@ def warm_up(n_axles: int = 1, discs_per_axle: int = 1) -> None:
 
 __all__ = [
     "commanded_pressures",
+    "fused_steps",
+    "kernel_threads",
+    "set_kernel_threads",
     "deceleration_mps2",
     "finish_rk4_step",
     "fused_rk4_steps",
+    "fused_rk4_steps_threaded",
     "plant_parameters",
     "stage_rates",
     "warm_up",
