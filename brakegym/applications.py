@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import config as cfg
+from .defaults import DEFAULT_STEP_S
 from .physics import BrakeCylinder, FrictionDraw
 from .plants import brake_cylinder, dynamometer_plant, nominal_draw, train_plant
 from .simulator import (
@@ -39,9 +40,6 @@ from .simulator.state import (
 )
 from .units import ZERO_CELSIUS_K, kmh_to_mps
 
-# RK4 at 0.2 s reproduces the golden values within 0.04 % and 0.01 K (tests/test_golden.py), far
-# inside the spec's 0.5 %; 0.1 s halves that error at twice the cost.
-DEFAULT_STEP_S = 0.2
 MAX_STOP_TIME_S = 900.0
 
 

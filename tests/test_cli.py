@@ -127,3 +127,17 @@ def test_output_cut_short_by_its_reader_ends_quietly():
         f"{sys.executable} -m brakegym dyno | head -1", shell=True, capture_output=True, text=True, timeout=300
     )
     assert result.stdout.startswith("load case") and result.stderr == ""
+
+
+def test_the_parser_loads_nothing_heavy():
+    """Building the command line's parser (every command's options) imports neither the compiled
+    simulator nor scipy.stats, pandas or matplotlib: the fixed cost of every command stays small.
+    Each command imports what it runs."""
+    heavy = ["numba", "scipy.stats", "pandas", "matplotlib", "torch", "stable_baselines3"]
+    code = (
+        "import sys; from brakegym.cli import build_parser; build_parser(); "
+        f"print([name for name in {heavy!r} if name in sys.modules])"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from .. import config as cfg
+from ..defaults import DEFAULT_STEP_S
+from ..observables import DYNO_OBSERVABLES, TRAIN_OBSERVABLES
 from .common import finite_positive, fraction, write_json
 from .recordings import (
     LEFT_OUT_KEY,
@@ -25,6 +26,9 @@ from .recordings import (
     recordings_left_out,
 )
 
+if TYPE_CHECKING:
+    import pandas as pd
+
 
 def _split(text: str) -> float | None:
     """A global fraction in [0, 1], or 'fit'."""
@@ -32,6 +36,8 @@ def _split(text: str) -> float | None:
 
 
 def _read_table(path: str, option: str) -> pd.DataFrame:
+    import pandas as pd
+
     try:
         return pd.read_csv(path)
     except FileNotFoundError:
@@ -41,7 +47,6 @@ def _read_table(path: str, option: str) -> pd.DataFrame:
 
 
 def cmd_parameters(args: argparse.Namespace) -> int:
-    from ..applications import DEFAULT_STEP_S
     from ..identification.cases import read_dyno_curves, recording_cases
     from ..identification.deterministic import identify
     from ..identification.parameters import load_identification_config
@@ -109,8 +114,6 @@ def cmd_scatter(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``brakegym identify`` and its two modes."""
-    from ..identification.stochastic import DYNO_OBSERVABLES, TRAIN_OBSERVABLES
-
     parser = sub.add_parser("identify", help="fit friction/thermal parameters or the friction scatter to data")
     modes = parser.add_subparsers(dest="mode", required=True)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
+from ..defaults import DEFAULT_STEP_S
 from .common import finite_non_negative, finite_positive, non_negative_int, positive_int, progress, write_json
 
 # ------------------------------------------------------------------------------------------------
@@ -98,7 +99,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_mcs(args: argparse.Namespace) -> int:
     from .. import campaigns
-    from ..campaigns import figures
 
     setup = cfg.load("setups", args.setup)
     if args.campaign == "dyno":
@@ -126,6 +126,8 @@ def cmd_mcs(args: argparse.Namespace) -> int:
             "specimens": result.specimen_summary().to_dict(orient="records"),
         }
         if args.figures:
+            from ..campaigns import figures  # matplotlib only where figures are asked for
+
             paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [
                 figures.mu_trend_figure(Path(args.figures))
             ]
@@ -163,6 +165,8 @@ def cmd_mcs(args: argparse.Namespace) -> int:
             "field_applications": summary.to_dict(orient="records"),
         }
         if args.figures:
+            from ..campaigns import figures
+
             paths = figures.field_campaign_figures(result, Path(args.figures))
             print("figures: " + ", ".join(str(p) for p in paths))
         if args.csv:
@@ -232,7 +236,6 @@ def _recorded_monte_carlo(vehicle, app, setup, seed, runs, step_s):
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     """Register ``demo``, ``dyno``, ``simulate``, ``mcs`` and ``trends``."""
-    from ..applications import DEFAULT_STEP_S
 
     step = dict(
         type=finite_positive("--step"), default=DEFAULT_STEP_S, help=f"integration step in s (default {DEFAULT_STEP_S})"

@@ -52,17 +52,12 @@ from scipy import optimize
 
 from .. import config as cfg
 from ..applications import DEFAULT_STEP_S, TrainApplication, dyno_stops, train_stops
+from ..observables import DYNO_OBSERVABLES, TRAIN_OBSERVABLES
 from ..physics import FrictionDraw
 from .parameters import IdentificationConfig, load_identification_config
 
 SIGMAS = ("sigma_mu0", "sigma_a")
 SPLIT = "global_fraction"
-DYNO_OBSERVABLES = {"mu_s": lambda s: s.mu_s[:, 0], "s_m": lambda s: s.stop_distance_m}
-TRAIN_OBSERVABLES = {
-    "mu_s_eff": lambda s: s.mu_s_eff,
-    "braking_distance_m": lambda s: s.braking_distance_m,
-    "stop_distance_m": lambda s: s.stop_distance_m,
-}
 FIELD_KEYS = ["brake_mode", "load", "pad_set", "actuation", "v0_kmh"]
 
 
