@@ -2,13 +2,17 @@
 input moves the distance the way physics says, and a stop with every brake failed runs out as
 running resistance alone allows."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy import integrate
 
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication, train_stops
+from brakegym.physics import BrakeCylinder, CaliperLaw
 from brakegym.safety import BrakingModel, InputLayout
+from brakegym.safety.conventional import conventional_stop, equivalent_response_time_s, time_to_force_share_s
 
 CASE = "emu_8axle"
 
@@ -143,3 +147,77 @@ def test_bad_case_inputs_are_refused():
         BrakingModel(cfg.load("safety_cases", CASE), "heavy", 100.0)
     with pytest.raises(ValueError, match="initial speed -5"):
         BrakingModel(cfg.load("safety_cases", CASE), "empty", -5.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# The conventional calculation
+
+
+def test_equivalent_response_time_of_a_lagged_cylinder():
+    """Analytic: with no caliper threshold, the force share is 1 - exp(-(t - t_d) / tau), so
+    t_a = t_d - tau ln 0.9, t_95 = t_d - tau ln 0.05 and t_e = (t_a + t_95) / 2."""
+    cylinder, caliper = BrakeCylinder(0.2, 0.8), CaliperLaw(12000.0, 0.0)
+    t_a, t_95 = 0.2 - 0.8 * math.log(0.9), 0.2 - 0.8 * math.log(0.05)
+    assert equivalent_response_time_s(cylinder, caliper, 3.3) == pytest.approx(0.5 * (t_a + t_95), rel=1e-12)
+    # A threshold delays the start of the force: later 10 % point, shorter build-up.
+    assert time_to_force_share_s(cylinder, CaliperLaw(12000.0, 0.3), 3.3, 0.1) > t_a
+    with pytest.raises(ValueError, match="no clamp force"):
+        time_to_force_share_s(cylinder, CaliperLaw(12000.0, 0.3), 0.2, 0.1)
+
+
+def test_conventional_distance_without_resistance_is_v0_te_plus_v0_squared_over_2a(model):
+    """Analytic limit: with no running resistance every speed step brakes at F_B / m, and the
+    steps sum to v_0^2 / (2 a)."""
+    frictionless = model.vehicle.model_copy(
+        update={
+            "running_resistance": model.vehicle.running_resistance.model_copy(
+                update={"A_N": 0.0, "B_N_per_mps": 0.0, "C_N_per_mps2": 0.0}
+            )
+        }
+    )
+    bare = BrakingModel(cfg.load("safety_cases", CASE), "empty", 160.0)
+    bare.vehicle = frictionless
+    stop = conventional_stop(bare)
+    v0 = 160.0 / 3.6
+    deceleration = stop.brake_force_N / frictionless.mass_kg("empty")
+    expected = v0 * stop.equivalent_response_time_s + v0**2 / (2 * deceleration)
+    assert stop.braking_distance_m == pytest.approx(expected, rel=1e-12)
+    # The brake force: mu_m times every disc's clamp force at the wheel.
+    clamp = bare.plant.caliper.clamp_force_N(np.array(bare.nominal_pressure_bar))
+    assert stop.brake_force_N == pytest.approx(0.35 * 16 * clamp * 0.28 / 0.46, rel=1e-12)
+
+
+def test_running_resistance_shortens_the_conventional_distance(model):
+    stop = conventional_stop(model)
+    v0 = model.initial_speed_kmh / 3.6
+    without = v0 * stop.equivalent_response_time_s + v0**2 / (2 * stop.brake_force_N / model.vehicle.mass_kg("empty"))
+    assert stop.braking_distance_m < without
+    assert np.all(np.diff(stop.speed_edges_kmh) < 0) and stop.speed_edges_kmh[-1] == 0.0
+
+
+# ------------------------------------------------------------------------------------------------
+# Strata by the number of failed units
+
+
+def test_strata_are_the_binomial_split(model):
+    strata = model.strata()
+    weights = np.array([weight for weight, _ in strata])
+    assert len(strata) == 17 and weights.sum() == pytest.approx(1.0, rel=1e-12)
+    assert weights[2] == pytest.approx(math.comb(16, 2) * 1e-3**2 * (1 - 1e-3) ** 14, rel=1e-12)
+
+
+def test_a_stratum_is_the_raw_model_with_those_units_failed(model):
+    """Stratum k fails the k units of the smallest normals; a point whose normals fail exactly
+    those units in the raw model gives the same distance."""
+    u = np.random.default_rng(11).standard_normal((1, model.dims))
+    units = model.layout.units
+    u[0, units] = np.abs(u[0, units])  # every unit works in the raw model
+    u[0, units.start + 3] = -3.5  # Phi(-3.5) < 1e-3: fails
+    u[0, units.start + 12] = -4.0
+    strata = model.strata()
+    assert model.working_units(u, 2).sum() == 14
+    assert np.array_equal(model.working_units(u, 2), model.working_units(u))
+    assert strata[2][1](u)[0] == model(u)[0]
+    assert strata[0][1](u)[0] < strata[1][1](u)[0] < strata[2][1](u)[0]
+    with pytest.raises(ValueError, match="failed_units 17"):
+        model.working_units(u, 17)

@@ -329,6 +329,15 @@ class BrakeUnitAvailability(StochasticInput):
     failure_probability_per_demand: float = Field(ge=0, le=1)
 
 
+class ConventionalCalculation(StochasticInput):
+    """The conventional braking-distance calculation beside the dynamic model: a constant mean
+    pad friction coefficient, full brake force from an equivalent response time, the distance
+    summed over speed steps (:mod:`brakegym.safety.conventional`)."""
+
+    mean_pad_friction: float = Field(gt=0, lt=1)
+    speed_step_kmh: float = Field(gt=0, le=50)
+
+
 class SafetyCase(StrictModel):
     """The stochastic inputs of one train's emergency braking, for braking-distance tails and the
     ETCS correction factors (``configs/safety_cases/``)."""
@@ -343,6 +352,7 @@ class SafetyCase(StrictModel):
     cylinder_pressure: PressureTolerance
     response_time: ResponseTimeScatter
     brake_units: BrakeUnitAvailability
+    conventional: ConventionalCalculation
 
 
 class EffectConfig(StrictModel):

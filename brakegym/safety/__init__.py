@@ -3,9 +3,13 @@ exceeds only with a small probability (the ETCS confidence levels), from the sto
 safety case (``configs/safety_cases/``).
 
 - :mod:`.model`: a safety case as a response function, standard-normal points to braking
-  distances (:class:`BrakingModel`).
+  distances (:class:`BrakingModel`), whole or split by the number of failed brake units
+  (:meth:`BrakingModel.strata`).
+- :mod:`.conventional`: the braking distance as the conventional calculation gives it (constant
+  mean pad friction, equivalent response time, speed steps), for comparison.
 """
 
+from .conventional import ConventionalStop, conventional_stop
 from .model import BrakingModel, InputLayout
 
-__all__ = ["BrakingModel", "InputLayout"]
+__all__ = ["BrakingModel", "ConventionalStop", "InputLayout", "conventional_stop"]

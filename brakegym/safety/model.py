@@ -12,10 +12,12 @@ case's points mean the same inputs whatever it switches off.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special
+from scipy import special, stats
 
 from .. import config as cfg
 from ..applications import DEFAULT_STEP_S, run_commanded_stops, train_conditions
@@ -97,11 +99,12 @@ class BrakingModel:
     def __call__(self, u: np.ndarray) -> np.ndarray:
         return self.braking_distance_m(u)
 
-    def braking_distance_m(self, u: np.ndarray) -> np.ndarray:
-        """The braking distance of each stop, m, (n,)."""
+    def braking_distance_m(self, u: np.ndarray, failed_units: int | None = None) -> np.ndarray:
+        """The braking distance of each stop, m, (n,). With ``failed_units`` k, exactly k units
+        fail in every stop (the stratum k of :meth:`strata`) instead of each with its probability."""
         u = self._checked(u)
         n = len(u)
-        working = self.working_units(u)
+        working = self.working_units(u, failed_units)
         hooks = [] if working.all() else [ConstantFrictionFactor(np.moveaxis(working.astype(float), 0, -1))]
         command = self.pressure_commands_bar(u)
         summary = run_commanded_stops(
@@ -144,10 +147,34 @@ class BrakingModel:
             running_resistance_A_N=resistance.A_N + sigma_A * u[:, layout.resistance],
         )
 
-    def working_units(self, u: np.ndarray) -> np.ndarray:
-        """Whether each disc unit of each stop gives force (n, axles, discs per axle)."""
-        working = u[:, self.layout.units] >= self.unit_failure_below
+    def working_units(self, u: np.ndarray, failed_units: int | None = None) -> np.ndarray:
+        """Whether each disc unit of each stop gives force (n, axles, discs per axle): a unit fails
+        where Phi(u) is below its failure probability per demand, or, with ``failed_units`` k, the
+        k units of the smallest u fail (for independent normals a uniformly drawn set of k)."""
+        units = u[:, self.layout.units]
+        if failed_units is None:
+            working = units >= self.unit_failure_below
+        else:
+            if not 0 <= failed_units <= units.shape[1]:
+                raise ValueError(f"failed_units {failed_units}: the train has {units.shape[1]} disc units")
+            working = np.ones(units.shape, dtype=bool)
+            np.put_along_axis(working, np.argsort(units, axis=1)[:, :failed_units], False, axis=1)
         return working.reshape(len(u), *self.plant.disc_shape)
+
+    def strata(self) -> list[tuple[float, Callable[[np.ndarray], np.ndarray]]]:
+        """The model split by the number k of failed units (law of total probability): for each k
+        of positive probability, its probability Binomial(k; units, q) and the braking distance
+        with exactly k units failed. The discrete input is gone from each stratum's response, which
+        the rare-event estimators need (one failure region per stratum instead of one per set of
+        failed units)."""
+        n_units = self.vehicle.n_discs
+        failure = self.case.brake_units.failure_probability_per_demand
+        weights = stats.binom.pmf(np.arange(n_units + 1), n_units, failure)
+        return [
+            (float(weight), functools.partial(self.braking_distance_m, failed_units=k))
+            for k, weight in enumerate(weights)
+            if weight > 0
+        ]
 
     def pressure_commands_bar(self, u: np.ndarray) -> np.ndarray:
         """The cylinder pressure of each axle (n, axles): the brake mode's pressure within its
