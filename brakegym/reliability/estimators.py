@@ -47,7 +47,7 @@ midpoint of the ``m``-th and ``m + 1``-th largest responses, Au & Beck's interme
 Weighted samples. Every estimate carries its CCDF as a :class:`WeightedTail`
 (:attr:`TailEstimate.tail`): responses with probability masses, whose sum over the responses above
 ``d`` is the estimate of ``P(response > d)`` at any ``d``, with the variance of that estimate. Tails
-of independent runs combine by the law of total probability.
+of independent runs combine by the law of total probability (:mod:`.mixture`).
 
 Determinism. All randomness comes from :mod:`brakegym.reliability.streams`: the seed's own stream
 for Monte Carlo and subset simulation's level 0, streams derived from the seed
@@ -97,7 +97,7 @@ class WeightedTail:
     :attr:`responses` above ``d``, for any ``d``, with the variance of that estimate.
 
     Every estimator's result is such a sample, so that tails of independent runs (strata of a
-    mixture) combine by the law of total probability. The weights are probability
+    mixture, :mod:`.mixture`) combine by the law of total probability. The weights are probability
     masses (they sum to at most 1); a sample with zero weight stands for nothing (subset
     simulation's seeds, counted in the next level).
 
