@@ -212,6 +212,65 @@ def test_importance_sampling_stops_on_two_symmetric_failure_regions():
         importance_sampling(lambda u: np.abs(u[:, 0]), 10, SEED, threshold=stats.norm.isf(5e-6))
 
 
+# --- weighted tails ----------------------------------------------------------------------------------
+
+
+def test_subset_simulations_weighted_sample_is_its_level_wise_ccdf():
+    """Level j's samples in (b_j, b_{j+1}] weigh p0**j / N: the weighted sample's CCDF is p0**j
+    times level j's fraction above d, which is what subset simulation with that threshold estimates
+    (the same seed runs the same levels until it stops), at the level boundaries (at b_4 the chains'
+    repeated states tie: 49 of level 3's samples exceed it, not N p0 = 50) and within levels; the
+    variance is Au & Beck's at d."""
+    options = {"n_per_level": 500}
+    estimate = subset_simulation(linear(10), 10, SEED, probability=1e-6, **options)
+    tail = estimate.tail
+    assert tail.method == "subset" and tail.levels == estimate.levels and len(tail.levels) == 5
+    assert math.isclose(tail.weights.sum(), 1.0, rel_tol=1e-12)
+    bounds = (-3.0, *estimate.levels, estimate.threshold)
+    points = sorted({*estimate.levels, *((a + b) / 2 for a, b in zip(bounds[:-1], bounds[1:]))})
+    for d in points:
+        exceedance = subset_simulation(linear(10), 10, SEED, threshold=d, **options)
+        assert tail.exceedance(d) == pytest.approx(exceedance.probability, rel=1e-12), d
+        assert tail.coefficient_of_variation(d) == pytest.approx(exceedance.coefficient_of_variation, rel=1e-9), d
+    # Vectorised over d, and the same as one d at a time.
+    assert np.array_equal(tail.exceedance(np.array(points)), [tail.exceedance(d) for d in points])
+    assert np.array_equal(tail.variance(np.array(points)), [tail.variance(d) for d in points])
+    # Above every sample the estimate is zero, and says so by its count.
+    top = tail.responses.max()
+    assert tail.exceedance(top) == 0.0 and tail.exceedance_count(top) == 0
+
+
+def test_importance_samplings_weighted_sample():
+    threshold = stats.norm.isf(1e-6)
+    estimate = importance_sampling(linear(10), 10, SEED, threshold=threshold)
+    tail = estimate.tail
+    assert tail.method == "is" and tail.sample_size == 2000 and len(tail.responses) == 2000
+    assert tail.exceedance(threshold) == pytest.approx(estimate.probability, rel=1e-12)
+    assert tail.coefficient_of_variation(threshold) == pytest.approx(estimate.coefficient_of_variation, rel=1e-9)
+    assert tail.exceedance_count(threshold) == estimate.diagnostics["exceedances"]
+    # The final sample resolves the CCDF a factor 10 either side of the threshold: its intervals hold the exact values.
+    for p in (1e-5, 1e-7):
+        d = stats.norm.isf(p)
+        spread = 1.96 * tail.coefficient_of_variation(d)
+        assert tail.exceedance(d) * (1 - spread) <= p <= tail.exceedance(d) * (1 + spread)
+
+
+def test_brute_forces_weighted_sample_resolves_only_its_tail():
+    n = 100_000
+    threshold = stats.norm.isf(1e-2)
+    estimate = brute_force(linear(10), 10, SEED, n_samples=n, threshold=threshold)
+    tail = estimate.tail
+    assert tail.resolved_from == threshold and len(tail.responses) == estimate.diagnostics["exceedances"]
+    assert tail.exceedance(threshold) == pytest.approx(estimate.probability, rel=1e-12)
+    assert tail.coefficient_of_variation(threshold) == pytest.approx(estimate.coefficient_of_variation, rel=1e-9)
+    assert math.isnan(tail.exceedance(threshold - 0.1)) and math.isnan(tail.variance(threshold - 0.1))
+    # With a probability, the largest responses down to the interval's lower end are kept.
+    quantile = brute_force(linear(10), 10, SEED, n_samples=n, probability=1e-2)
+    assert quantile.tail.resolved_from <= quantile.threshold_ci95[0]
+    assert quantile.tail.exceedance(quantile.threshold) == pytest.approx(1e-2, rel=1e-12)
+    assert math.isnan(quantile.tail.exceedance(quantile.threshold_ci95[0] - 0.01))
+
+
 # --- brute force ---------------------------------------------------------------------------------------
 
 
@@ -254,6 +313,8 @@ def test_the_batch_size_changes_nothing(method):
     first = estimator(Guarded(linear(10), large), 10, SEED, probability=1e-3, batch_size=large, **options)
     second = estimator(Guarded(linear(10), small), 10, SEED, probability=1e-3, batch_size=small, **options)
     assert same_estimate(first, second)
+    assert np.array_equal(first.tail.responses, second.tail.responses)
+    assert np.array_equal(first.tail.weights, second.tail.weights)
     assert not same_estimate(first, estimator(linear(10), 10, SEED + 1, probability=1e-3, **options))
 
 

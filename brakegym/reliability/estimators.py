@@ -44,6 +44,11 @@ mid-jump plotting positions: sorted from the largest, sample ``m`` sits at the p
 the CCDF is linear between them. With equal weights and ``p * n`` a whole number ``m`` this is the
 midpoint of the ``m``-th and ``m + 1``-th largest responses, Au & Beck's intermediate threshold.
 
+Weighted samples. Every estimate carries its CCDF as a :class:`WeightedTail`
+(:attr:`TailEstimate.tail`): responses with probability masses, whose sum over the responses above
+``d`` is the estimate of ``P(response > d)`` at any ``d``, with the variance of that estimate. Tails
+of independent runs combine by the law of total probability (:mod:`.mixture`).
+
 Determinism. All randomness comes from :mod:`brakegym.reliability.streams`: the seed's own stream
 for Monte Carlo and subset simulation's level 0, streams derived from the seed
 (:func:`~brakegym.reliability.streams.derived_seed`) for the Markov-chain proposals and the
@@ -81,6 +86,190 @@ _FINAL_STREAM = 3
 # Relative tolerance of "the conditional probability has reached the level probability": p / p0**k
 # is computed in floating point (1e-3 / 0.1**2 = 0.0999...).
 _LEVEL_TOLERANCE = 1e-9
+# Brute force with a threshold keeps the responses above it, at most this many (the largest).
+_MAX_KEPT_RESPONSES = 1_000_000
+
+
+@dataclass(frozen=True, eq=False)
+class WeightedTail:
+    """An estimate of the complementary distribution function (CCDF) of a response, as a weighted
+    sample: ``P(response > d)`` is estimated by the sum of :attr:`weights` over the
+    :attr:`responses` above ``d``, for any ``d``, with the variance of that estimate.
+
+    Every estimator's result is such a sample, so that tails of independent runs (strata of a
+    mixture, :mod:`.mixture`) combine by the law of total probability. The weights are probability
+    masses (they sum to at most 1); a sample with zero weight stands for nothing (subset
+    simulation's seeds, counted in the next level).
+
+    - ``"brute"`` (Monte Carlo, ``n = sample_size``): weights ``1 / n``. Only the largest
+      responses are kept (those above the threshold given, or those down to the lower end of the
+      quantile's interval), so the sample resolves the CCDF only from :attr:`resolved_from` up;
+      below it :meth:`exceedance` and :meth:`variance` are NaN. Variance ``P (1 - P) / n``.
+    - ``"subset"`` (``N = sample_size`` per level, ``p0 = level_probability``, intermediate
+      thresholds ``b_1 < ... < b_L`` = :attr:`levels`): level ``j``'s samples in
+      ``(b_j, b_{j+1}]`` (``b_0 = -inf``; those not carried on as seeds) weigh ``p0**j / N``, the
+      last level's samples ``p0**L / N``. The sum above ``d`` in ``[b_j, b_{j+1})`` is then
+      ``p0**j`` times level ``j``'s fraction above ``d``: subset simulation's CCDF estimate
+      itself. The variance is Au & Beck's (2001) at ``d``:
+      ``P**2 (sum_{i<j} (1 - p0) / (N p0) (1 + gamma_i) + (1 - P_j) / (N P_j) (1 + gamma_j(d)))``,
+      with ``P_j`` level ``j``'s fraction above ``d`` and ``gamma_j(d)`` the correlation factor of
+      its chains' indicators ``1[y > d]``; the completed levels' terms are :attr:`level_terms`.
+      :attr:`responses` holds level after level, ``N`` each: level 0 in sample order, each later
+      level as its chains' states step after step (``N / chains`` steps of ``chains`` states).
+    - ``"is"`` (importance sampling, ``n = sample_size`` final samples with importance weights
+      ``w_i``): weights ``w_i / n``; variance ``s**2 / n`` with ``s`` the sample standard
+      deviation of ``w_i 1[y_i > d]``.
+    - ``"mixture"``: ``sum_k pi_k`` times the CCDFs of independent :attr:`parts` with weights
+      ``pi_k`` = :attr:`part_weights`; variance ``sum_k pi_k**2`` times theirs. :attr:`responses`
+      and :attr:`weights` are the parts' samples with their weights times ``pi_k``.
+
+    A CCDF of zero (no sample above ``d``) has zero variance: whether a sample resolves ``d`` is
+    for :meth:`exceedance_count` to say. Instances pickle (plain arrays and numbers).
+
+    Attributes
+    ----------
+    method
+        ``"brute"``, ``"subset"``, ``"is"`` or ``"mixture"``.
+    responses
+        The sample's responses (read-only).
+    weights
+        Their probability masses (read-only).
+    sample_size
+        ``n`` of Monte Carlo or of the final importance-sampling run, ``N`` per level of subset
+        simulation; 0 for a mixture.
+    resolved_from
+        The smallest ``d`` whose CCDF the sample gives; ``-inf`` except for brute force's kept tail.
+    level_probability
+        Subset simulation: ``p0``.
+    levels
+        Subset simulation: the intermediate thresholds ``b_1, ..., b_L``.
+    chains
+        Subset simulation: the number of Markov chains per level.
+    level_terms
+        Subset simulation: ``(1 - p0) / (N p0) (1 + gamma_i)`` of each completed level ``i < L``.
+    parts
+        A mixture's tails.
+    part_weights
+        Their weights ``pi_k``.
+    """
+
+    method: str
+    responses: np.ndarray
+    weights: np.ndarray
+    sample_size: int = 0
+    resolved_from: float = -math.inf
+    level_probability: float = 0.0
+    levels: tuple[float, ...] = ()
+    chains: int = 0
+    level_terms: tuple[float, ...] = ()
+    parts: tuple[WeightedTail, ...] = ()
+    part_weights: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("responses", "weights"):
+            values = np.array(getattr(self, name), dtype=np.float64)
+            values.flags.writeable = False
+            object.__setattr__(self, name, values)
+        if self.responses.shape != self.weights.shape or self.responses.ndim != 1:
+            raise ValueError(
+                f"responses {self.responses.shape} and weights {self.weights.shape}: need two 1-D arrays of one length"
+            )
+
+    @classmethod
+    def mixture(cls, parts: tuple[WeightedTail, ...], part_weights: tuple[float, ...]) -> WeightedTail:
+        """The tail of ``sum_k part_weights[k] * parts[k]``, the parts independent estimates."""
+        parts, part_weights = tuple(parts), tuple(float(w) for w in part_weights)
+        responses = np.concatenate([part.responses for part in parts]) if parts else np.empty(0)
+        weights = np.concatenate([w * part.weights for part, w in zip(parts, part_weights)]) if parts else np.empty(0)
+        resolved_from = max((part.resolved_from for part in parts), default=-math.inf)
+        return cls("mixture", responses, weights, resolved_from=resolved_from, parts=parts, part_weights=part_weights)
+
+    def exceedance(self, d: float | np.ndarray) -> float | np.ndarray:
+        """The estimate of ``P(response > d)``, for each ``d`` (NaN below :attr:`resolved_from`)."""
+        points = np.asarray(d, dtype=np.float64)
+        if self.method == "mixture":
+            terms = (w * part.exceedance(points) for part, w in zip(self.parts, self.part_weights))
+            result = sum(terms, np.zeros(points.shape))
+        else:
+            order = np.argsort(self.responses, kind="stable")
+            ascending = self.responses[order]
+            # Masses summed from the largest response down: above[m] is the mass of ascending[m:].
+            above = np.append(np.cumsum(self.weights[order][::-1])[::-1], 0.0)
+            result = above[np.searchsorted(ascending, points, side="right")]
+            result = np.where(points < self.resolved_from, np.nan, result)
+        return _like(result, points)
+
+    def exceedance_count(self, d: float | np.ndarray) -> int | np.ndarray:
+        """How many samples above ``d`` the estimate at ``d`` rests on: of the whole sample for brute
+        force and importance sampling, of the level that holds ``d`` for subset simulation, summed
+        over the parts of a mixture. Few (under 10, say) means the sample does not resolve ``d``."""
+        points = np.asarray(d, dtype=np.float64)
+        if self.method == "mixture":
+            counts = sum((part.exceedance_count(points) for part in self.parts), np.zeros(points.shape, dtype=np.int64))
+        elif self.method == "subset":
+            counts = [np.count_nonzero(self._level(value) > value) for value in points.ravel()]
+            counts = np.array(counts, dtype=np.int64).reshape(points.shape)
+        else:
+            ascending = np.sort(self.responses)
+            counts = len(ascending) - np.searchsorted(ascending, points, side="right")
+        return counts if points.ndim else int(counts)
+
+    def variance(self, d: float | np.ndarray) -> float | np.ndarray:
+        """The estimated variance of :meth:`exceedance` at each ``d`` (see the class notes)."""
+        points = np.asarray(d, dtype=np.float64)
+        probabilities = np.asarray(self.exceedance(points), dtype=np.float64)
+        if self.method == "mixture":
+            terms = (w**2 * part.variance(points) for part, w in zip(self.parts, self.part_weights))
+            result = sum(terms, np.zeros(points.shape))
+        elif self.method == "brute":
+            result = probabilities * (1.0 - probabilities) / self.sample_size
+        elif self.method == "is":
+            n = self.sample_size
+            order = np.argsort(self.responses, kind="stable")
+            ascending, importance = self.responses[order], self.weights[order] * n
+            first = np.append(np.cumsum(importance[::-1])[::-1], 0.0)
+            second = np.append(np.cumsum(importance[::-1] ** 2)[::-1], 0.0)
+            above = np.searchsorted(ascending, points, side="right")
+            mean = first[above] / n
+            result = np.maximum(second[above] / n - mean**2, 0.0) * n / (n - 1) / n
+        else:
+            squared_cov = np.array([self._squared_cov(value) for value in points.ravel()]).reshape(points.shape)
+            result = probabilities**2 * squared_cov
+        return _like(result, points)
+
+    def coefficient_of_variation(self, d: float | np.ndarray) -> float | np.ndarray:
+        """``sqrt(variance(d)) / exceedance(d)``; infinite where the estimate is zero."""
+        points = np.asarray(d, dtype=np.float64)
+        probabilities = np.asarray(self.exceedance(points), dtype=np.float64)
+        spread = np.sqrt(np.asarray(self.variance(points), dtype=np.float64))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            result = np.where(probabilities > 0.0, spread / np.where(probabilities > 0.0, probabilities, 1.0), np.inf)
+        result = np.where(np.isnan(probabilities), np.nan, result)
+        return _like(result, points)
+
+    def _level_index(self, value: float) -> int:
+        """Subset simulation: the level whose samples give the CCDF at ``value``, the number of
+        intermediate thresholds at or below it. At a threshold ``b_{j+1}`` itself this is level
+        ``j + 1``, all of whose samples exceed it, except where the chains' repeated states tie
+        at ``b_{j+1}``: then fewer than ``N p0`` of level ``j`` exceed it, and the weighted sample,
+        like subset simulation with that threshold, counts level ``j + 1``'s."""
+        return int(np.searchsorted(np.asarray(self.levels), value, side="right"))
+
+    def _level(self, value: float) -> np.ndarray:
+        """Subset simulation: the responses of the level that holds ``value``, as (steps, chains)."""
+        level, n = self._level_index(value), self.sample_size
+        block = self.responses[level * n : (level + 1) * n]
+        return block[None, :] if level == 0 else block.reshape(n // self.chains, self.chains)
+
+    def _squared_cov(self, value: float) -> float:
+        """Subset simulation: Au & Beck's squared coefficient of variation at ``value``."""
+        level = self._level_index(value)
+        exceeds = self._level(value) > value
+        share = float(np.mean(exceeds))
+        if share == 0.0:
+            return 0.0
+        own = (1.0 - share) / (self.sample_size * share) * (1.0 + _chain_correlation_factor(exceeds))
+        return float(sum(self.level_terms[:level])) + own
 
 
 @dataclass(frozen=True)
@@ -114,6 +303,9 @@ class TailEstimate:
     diagnostics
         Method-specific figures (JSON-ready): exceedance counts, acceptance rates and correlation
         factors per level, importance-density means, effective sample sizes.
+    tail
+        The estimate as a weighted sample (:class:`WeightedTail`): the CCDF and its variance at
+        any threshold. Not part of :meth:`as_dict`, and not compared by ``==``.
     """
 
     method: str
@@ -127,6 +319,7 @@ class TailEstimate:
     coefficient_of_variation: float
     levels: tuple[float, ...] = ()
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    tail: WeightedTail | None = field(default=None, compare=False, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
         """The fields the command line writes, JSON-ready (non-finite numbers become None).
@@ -159,15 +352,17 @@ def brute_force(
 ) -> TailEstimate:
     """Plain Monte Carlo on ``standard_normals(seed, arange(n_samples), dims)``.
 
-    Samples are drawn and evaluated one batch at a time. With ``threshold``, only the number of
-    exceedances is kept, and the probability is the fraction of exceedances with a
-    Clopper-Pearson interval. With ``probability``, the quantile is read off the empirical CCDF
+    Samples are drawn and evaluated one batch at a time. With ``threshold``, only the responses
+    above it are kept (at most the largest million), and the probability is the fraction of
+    exceedances with a Clopper-Pearson interval. With ``probability``, the quantile is read off the empirical CCDF
     (see the module's notes) and its interval lies between the order statistics of ranks ``l``
     and ``u``, the binomial ranks with ``P(l <= B < u) >= 0.95`` for ``B ~ Binomial(n, 1 - p)``,
     the number of samples below the true quantile; only the largest ``n - l + 2`` responses are
     kept (in a buffer of twice that plus a batch). The probability interval is Clopper-Pearson's
     at the estimated quantile. A probability with fewer than 10 expected exceedances (or
-    non-exceedances) in ``n_samples`` is refused.
+    non-exceedances) in ``n_samples`` is refused. The kept responses make the estimate's
+    :class:`WeightedTail`, which therefore resolves the CCDF only above the threshold, or above
+    the quantile interval's lower end.
 
     Parameters
     ----------
@@ -197,8 +392,9 @@ def brute_force(
             )
     evaluate = _CountedResponse(response, dims, batch_size)
     if probability is None:
-        exceedances = _count_exceedances(evaluate, seed, n_samples, threshold)
+        exceedances, largest = _exceeding_responses(evaluate, seed, n_samples, threshold, _MAX_KEPT_RESPONSES)
         threshold_ci95 = (float(threshold), float(threshold))
+        resolved_from = float(threshold) if exceedances == len(largest) else float(largest[-1])
     else:
         lower_rank, upper_rank = _binomial_ranks(n_samples, probability)
         # The interval's lower end is the (n - lower_rank + 1)-th largest response; the estimate lies above it.
@@ -207,6 +403,7 @@ def brute_force(
         threshold = float(np.interp(probability, (np.arange(len(largest)) + 0.5) / n_samples, largest))
         threshold_ci95 = (float(largest[n_samples - lower_rank]), float(largest[n_samples - upper_rank]))
         exceedances = int(np.count_nonzero(largest > threshold))
+        resolved_from = -math.inf if len(largest) == n_samples else float(largest[-1])
     estimate = exceedances / n_samples
     probability_ci95 = _clopper_pearson(exceedances, n_samples)
     return TailEstimate(
@@ -220,6 +417,9 @@ def brute_force(
         seconds=time.perf_counter() - start,
         coefficient_of_variation=math.sqrt((1 - estimate) / exceedances) if exceedances else math.inf,
         diagnostics={"exceedances": exceedances},
+        tail=WeightedTail(
+            "brute", largest, np.full(len(largest), 1.0 / n_samples), n_samples, resolved_from=resolved_from
+        ),
     )
 
 
@@ -295,48 +495,19 @@ def subset_simulation(
     """
     start = time.perf_counter()
     _check_target(probability, threshold)
-    chains, chain_length = _subset_layout(n_per_level, level_probability)
+    chains, _ = _subset_layout(n_per_level, level_probability)
     max_levels = _check_integer("max_levels", max_levels, 1)
     if probability is not None:
         _check_reachable(probability, level_probability, max_levels, n_per_level)
-    evaluate = _CountedResponse(response, dims, batch_size)
-    states = standard_normals(seed, np.arange(n_per_level), evaluate.dims)[None]
-    responses = evaluate(states[0])[None]
-    level_responses, selections, thresholds, acceptance = [responses], [], [], []
-    scaling = _INITIAL_SCALING
-    while not _subset_done(responses, chains, probability, threshold, level_probability, len(thresholds)):
-        if len(thresholds) == max_levels:
+    run = _SubsetRun(_CountedResponse(response, dims, batch_size), seed, n_per_level, level_probability)
+    while not _subset_done(run.level_responses[-1], chains, probability, threshold, level_probability, run.depth):
+        if run.depth == max_levels:
             raise RuntimeError(
                 f"threshold = {threshold} not reached in max_levels = {max_levels} levels: its exceedance "
                 f"probability is below about {level_probability**max_levels:.1e} or the response is bounded"
             )
-        intermediate, selected = _intermediate_threshold(responses, chains)
-        seeds = np.flatnonzero(selected.ravel())
-        stream = derived_seed(seed, _PROPOSAL_STREAM, len(thresholds))
-        states, responses, scaling, rate = _conditional_sampling_level(
-            evaluate,
-            states.reshape(-1, evaluate.dims)[seeds],
-            responses.ravel()[seeds],
-            intermediate,
-            chain_length,
-            scaling,
-            stream,
-        )
-        level_responses.append(responses)
-        selections.append(selected)
-        thresholds.append(intermediate)
-        acceptance.append(rate)
-    return _subset_estimate(
-        level_responses,
-        selections,
-        thresholds,
-        probability,
-        threshold,
-        level_probability,
-        evaluate.evaluations,
-        start,
-        acceptance,
-    )
+        run.advance()
+    return _subset_estimate(run, probability, threshold, start)
 
 
 def importance_sampling(
@@ -400,15 +571,7 @@ def importance_sampling(
     """
     start = time.perf_counter()
     _check_target(probability, threshold)
-    n_per_level = _check_integer("n_per_level", n_per_level, 2)
-    n_final = _check_integer("n_final", n_per_level if n_final is None else n_final, 2)
-    _check_level_probability(level_probability)
-    if n_per_level * level_probability < 1:
-        raise ValueError(
-            f"n_per_level = {n_per_level} with level_probability = {level_probability} leaves no sample above "
-            f"the intermediate thresholds: need n_per_level * level_probability >= 1"
-        )
-    max_levels = _check_integer("max_levels", max_levels, 1)
+    n_per_level, n_final, max_levels = _importance_settings(n_per_level, n_final, level_probability, max_levels)
     evaluate = _CountedResponse(response, dims, batch_size)
     mean, thresholds, mean_norms = np.zeros(evaluate.dims), [], [0.0]
     for level in range(max_levels):
@@ -434,15 +597,76 @@ def importance_sampling(
             f"(last intermediate threshold {thresholds[-1]:.6g})"
         )
     responses, log_weights = _shifted_run(evaluate, mean, derived_seed(seed, _FINAL_STREAM), n_final)
-    estimate = _importance_estimate(responses, np.exp(log_weights), probability, threshold)
+    weights = np.exp(log_weights)
+    estimate = _importance_estimate(responses, weights, probability, threshold)
     return TailEstimate(
         method="is",
         model_evaluations=evaluate.evaluations,
         seconds=time.perf_counter() - start,
         levels=tuple(thresholds),
         diagnostics={**estimate.pop("diagnostics"), "mean_norms": mean_norms, "importance_mean": mean.tolist()},
+        tail=WeightedTail("is", responses, weights / n_final, n_final),
         **estimate,
     )
+
+
+def _importance_settings(
+    n_per_level: int, n_final: int | None, level_probability: float, max_levels: int
+) -> tuple[int, int, int]:
+    """:func:`importance_sampling`'s settings, checked: ``n_per_level``, ``n_final``, ``max_levels``."""
+    n_per_level = _check_integer("n_per_level", n_per_level, 2)
+    n_final = _check_integer("n_final", n_per_level if n_final is None else n_final, 2)
+    _check_level_probability(level_probability)
+    if n_per_level * level_probability < 1:
+        raise ValueError(
+            f"n_per_level = {n_per_level} with level_probability = {level_probability} leaves no sample above "
+            f"the intermediate thresholds: need n_per_level * level_probability >= 1"
+        )
+    return n_per_level, n_final, _check_integer("max_levels", max_levels, 1)
+
+
+class _SubsetRun:
+    """Subset simulation's levels, one at a time: level 0 on construction, a conditional level per
+    :meth:`advance` (see :func:`subset_simulation`)."""
+
+    def __init__(self, evaluate: _CountedResponse, seed: int, n_per_level: int, level_probability: float) -> None:
+        self.evaluate, self.seed, self.level_probability = evaluate, seed, level_probability
+        self.chains, self.chain_length = _subset_layout(n_per_level, level_probability)
+        self.states = standard_normals(seed, np.arange(n_per_level), evaluate.dims)[None]
+        self.level_responses: list[np.ndarray] = [evaluate(self.states[0])[None]]
+        self.selections: list[np.ndarray] = []
+        self.thresholds: list[float] = []
+        self.acceptance: list[float] = []
+        self.scaling = _INITIAL_SCALING
+
+    @property
+    def depth(self) -> int:
+        """Conditional levels so far (intermediate thresholds)."""
+        return len(self.thresholds)
+
+    def advance(self) -> None:
+        """Adds a level, conditional on exceeding the last level's ``1 - p0`` quantile."""
+        responses = self.level_responses[-1]
+        intermediate, selected = _intermediate_threshold(responses, self.chains)
+        seeds = np.flatnonzero(selected.ravel())
+        stream = derived_seed(self.seed, _PROPOSAL_STREAM, self.depth)
+        self.states, responses, self.scaling, rate = _conditional_sampling_level(
+            self.evaluate,
+            self.states.reshape(-1, self.evaluate.dims)[seeds],
+            responses.ravel()[seeds],
+            intermediate,
+            self.chain_length,
+            self.scaling,
+            stream,
+        )
+        self.level_responses.append(responses)
+        self.selections.append(selected)
+        self.thresholds.append(intermediate)
+        self.acceptance.append(rate)
+
+    def tail(self) -> WeightedTail:
+        """The levels so far as a :class:`WeightedTail`."""
+        return _subset_tail(self.level_responses, self.selections, self.thresholds, self.level_probability, self.chains)
 
 
 class _CountedResponse:
@@ -500,6 +724,11 @@ def _check_level_probability(level_probability: float) -> None:
         raise ValueError(f"level_probability = {level_probability!r}: need a number in (0, 0.5]")
 
 
+def _like(result: np.ndarray, points: np.ndarray) -> float | np.ndarray:
+    """A float for a scalar argument, else the array."""
+    return result if points.ndim else float(result)
+
+
 def _json_number(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
@@ -549,13 +778,27 @@ def _binomial_ranks(n: int, probability: float) -> tuple[int, int]:
     return lower_rank, int(below.ppf(0.975)) + 1
 
 
-def _count_exceedances(evaluate: _CountedResponse, seed: int, n_samples: int, threshold: float) -> int:
-    """How many of the Monte Carlo sample's responses exceed ``threshold``, batch by batch."""
-    exceedances = 0
+def _exceeding_responses(
+    evaluate: _CountedResponse, seed: int, n_samples: int, threshold: float, keep: int
+) -> tuple[int, np.ndarray]:
+    """How many of the Monte Carlo sample's responses exceed ``threshold``, and the largest
+    ``keep`` of those, in descending order; batch by batch, the kept ones cut back to the ``keep``
+    largest whenever more than twice as many are held."""
+    exceedances, held, pieces = 0, 0, []
     for begin in range(0, n_samples, evaluate.batch_size):
         index = np.arange(begin, min(begin + evaluate.batch_size, n_samples))
-        exceedances += int(np.count_nonzero(evaluate(standard_normals(seed, index, evaluate.dims)) > threshold))
-    return exceedances
+        values = evaluate(standard_normals(seed, index, evaluate.dims))
+        above = values[values > threshold]
+        exceedances += len(above)
+        pieces.append(above)
+        held += len(above)
+        if held > 2 * keep:
+            merged = np.concatenate(pieces)
+            pieces, held = [np.partition(merged, len(merged) - keep)[len(merged) - keep :]], keep
+    kept = np.concatenate(pieces) if pieces else np.empty(0)
+    if len(kept) > keep:
+        kept = np.partition(kept, len(kept) - keep)[len(kept) - keep :]
+    return exceedances, np.sort(kept)[::-1]
 
 
 def _largest_responses(evaluate: _CountedResponse, seed: int, n_samples: int, keep: int) -> np.ndarray:
@@ -710,20 +953,11 @@ def _subset_quantiles(
     return quantiles
 
 
-def _subset_estimate(
-    level_responses: list[np.ndarray],
-    selections: list[np.ndarray],
-    thresholds: list[float],
-    probability: float | None,
-    threshold: float | None,
-    level_probability: float,
-    evaluations: int,
-    start: float,
-    acceptance: list[float],
-) -> TailEstimate:
+def _subset_estimate(run: _SubsetRun, probability: float | None, threshold: float | None, start: float) -> TailEstimate:
     """The estimate, its coefficient of variation (Au & Beck 2001) and intervals from the levels:
     their responses, and for all but the last the mask of the samples above the next intermediate
     threshold."""
+    level_responses, selections, level_probability = run.level_responses, run.selections, run.level_probability
     last = len(level_responses) - 1
     if probability is not None:
         conditional = probability / level_probability**last
@@ -751,11 +985,46 @@ def _subset_estimate(
         probability_ci95=probability_ci95,
         threshold=float(threshold),
         threshold_ci95=threshold_ci95,
-        model_evaluations=evaluations,
+        model_evaluations=run.evaluate.evaluations,
         seconds=time.perf_counter() - start,
         coefficient_of_variation=cov,
-        levels=tuple(thresholds),
-        diagnostics={"acceptance_rates": acceptance, "correlation_factors": gammas},
+        levels=tuple(run.thresholds),
+        diagnostics={"acceptance_rates": run.acceptance, "correlation_factors": gammas},
+        tail=run.tail(),
+    )
+
+
+def _subset_tail(
+    level_responses: list[np.ndarray],
+    selections: list[np.ndarray],
+    thresholds: list[float],
+    level_probability: float,
+    chains: int,
+) -> WeightedTail:
+    """Subset simulation's levels as a weighted sample: level ``j``'s samples weigh ``p0**j / N``
+    except its seeds of the next level, which weigh nothing (the next level stands for them); the
+    last level's all weigh ``p0**L / N``."""
+    n = level_responses[0].size
+    last = len(level_responses) - 1
+    weights = []
+    for level in range(last + 1):
+        mass = np.full(n, level_probability**level / n)
+        if level < last:
+            mass[selections[level].ravel()] = 0.0
+        weights.append(mass)
+    terms = [
+        (1.0 - level_probability) / (n * level_probability) * (1.0 + _chain_correlation_factor(selected))
+        for selected in selections
+    ]
+    return WeightedTail(
+        "subset",
+        np.concatenate([responses.ravel() for responses in level_responses]),
+        np.concatenate(weights),
+        n,
+        level_probability=level_probability,
+        levels=tuple(float(b) for b in thresholds),
+        chains=int(chains),
+        level_terms=tuple(terms),
     )
 
 
