@@ -92,6 +92,19 @@ def test_mcs_field_json_and_figures(tmp_path):
         (["mcs", "--campaign", "train"], "invalid choice: 'train'"),
         (["mcs", "--campaign", "dyno", "--seed", "-1"], "--seed must not be negative"),
         (["dyno", "--case", "V0999_Case9"], "unknown load case 'V0999_Case9'"),
+        (["tail", "--load", "empty", "--v0", "160"], "one of the arguments --probability --distance is required"),
+        (["tail", "--load", "empty", "--v0", "160", "--probability", "1"], "strictly between 0 and 1, got '1'"),
+        (["tail", "--load", "empty", "--v0", "160", "--distance", "-3"], "--distance must be a positive"),
+        (["tail", "--load", "full", "--v0", "160", "--probability", "1e-3"], "unknown load 'full'"),
+        (["tail", "--load", "empty", "--v0", "160", "--probability", "1e-3", "--safety-case", "x"], "unknown safety"),
+        (
+            ["tail", "--load", "empty", "--v0", "160", "--probability", "1e-9", "--method", "brute"],
+            "use --method subset or is",
+        ),
+        (
+            ["tail", "--load", "empty", "--v0", "60", "--probability", "1e-3", "--samples", "100"],
+            "--samples is brute force's sample size",
+        ),
     ],
 )
 def test_bad_arguments_exit_2_with_message(args, message, capsys):
@@ -141,3 +154,17 @@ def test_the_parser_loads_nothing_heavy():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
+
+
+def test_tail_json(tmp_path, capsys):
+    out = tmp_path / "tail.json"
+    args = ["tail", "--load", "empty", "--v0", "60", "--probability", "1e-3", "--method", "is", "--json", str(out)]
+    assert main(args) == 0
+    data = json.loads(out.read_text())
+    stable = {"probability", "braking_distance_m", "ci95_m", "model_evaluations", "method", "seconds"}
+    assert stable <= set(data) and data["method"] == "is" and data["probability"] == 1e-3
+    low, high = data["ci95_m"]
+    assert low <= data["braking_distance_m"] <= high
+    # The 1e-3 distance lies beyond the nominal stop; the table says both.
+    assert data["braking_distance_m"] > data["nominal_braking_distance_m"]
+    assert "exceeded with probability 0.001" in capsys.readouterr().out

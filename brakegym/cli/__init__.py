@@ -5,13 +5,14 @@
     brakegym simulate  one train stop
     brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
     brakegym trends    the paper's trends recomputed
+    brakegym tail      the braking distance exceeded with a small probability (safety cases)
     brakegym train | evaluate | stress   controllers on the environments
     brakegym synth     synthetic recordings with concealed effects
     brakegym diagnose  locate and name the missing physics in recordings
     brakegym identify  fit friction, thermal and scatter parameters to data
 
-One module per group of subcommands (:mod:`.simulation`, :mod:`.controllers`, :mod:`.recordings`,
-:mod:`.identify`), each with an ``add_commands(subparsers)``; what they share is :mod:`.common`.
+One module per group of subcommands (:mod:`.simulation`, :mod:`.safety`, :mod:`.controllers`,
+:mod:`.recordings`, :mod:`.identify`), each with an ``add_commands(subparsers)``; what they share is :mod:`.common`.
 ``--config-path DIR`` (repeatable) puts a folder of the user's own configs on the search path
 before ``$BRAKEGYM_CONFIG_PATH`` and the shipped configs. JSON keys the commands write are a public
 interface and stay stable. Errors in arguments, configs or data end with a message on stderr and
@@ -27,10 +28,10 @@ from collections.abc import Sequence
 
 from .. import __version__
 from .. import config as cfg
-from . import controllers, identify, recordings, simulation
+from . import controllers, identify, recordings, safety, simulation
 from .common import EXIT_USAGE, UsageError
 
-COMMAND_GROUPS = (simulation, controllers, recordings, identify)
+COMMAND_GROUPS = (simulation, safety, controllers, recordings, identify)
 
 
 def build_parser() -> argparse.ArgumentParser:

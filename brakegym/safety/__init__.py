@@ -5,6 +5,8 @@ safety case (``configs/safety_cases/``).
 - :mod:`.model`: a safety case as a response function, standard-normal points to braking
   distances (:class:`BrakingModel`), whole or split by the number of failed brake units
   (:meth:`BrakingModel.strata`).
+- :mod:`.tail`: the braking distance at a probability, or the probability of a distance, with
+  95 % intervals (:func:`~.tail.braking_distance_tail`, ``brakegym tail``).
 - :mod:`.conventional`: the braking distance as the conventional calculation gives it (constant
   mean pad friction, equivalent response time, speed steps), for comparison.
 """

@@ -120,6 +120,10 @@ class BrakingModel:
         )
         return summary.braking_distance_m
 
+    def nominal_braking_distance_m(self) -> float:
+        """The stop with every input at its nominal value (u = 0) and no unit failed."""
+        return float(self.braking_distance_m(np.zeros((1, self.dims)), failed_units=0)[0])
+
     def _checked(self, u: np.ndarray) -> np.ndarray:
         u = np.asarray(u, dtype=float)
         if u.ndim != 2 or u.shape[1] != self.dims:
