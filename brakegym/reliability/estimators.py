@@ -28,26 +28,7 @@ The methods:
   mean is adapted, then a final importance-sampling run. Probability interval from the standard
   error of the weighted sample.
 
-Intervals. Subset simulation and importance sampling give a coefficient of variation ``delta`` of
-the probability estimate. Their 95 % probability interval is log-normal, ``P * exp(-+1.96 s)`` with
-``s = sqrt(log(1 + delta**2))``: positive where ``P * (1 -+ 1.96 delta)`` can be negative,
-right-skewed as products of level probabilities and sums of heavy-tailed weights are, and the same
-to first order in ``delta``. A quantile's interval is where the estimated complementary
-distribution function (CCDF) crosses the ends of the probability interval: the threshold whose
-estimated exceedance probability is ``p * exp(+1.96 s)`` (lower end) and the one at
-``p * exp(-1.96 s)`` (upper end); to first order these are the crossings at
-``p / (1 -+ 1.96 delta)``. An end beyond what the samples resolve is infinite.
-
-Empirical CCDF. Quantiles of a (weighted) sample are read off its CCDF with the samples at
-mid-jump plotting positions: sorted from the largest, sample ``m`` sits at the probability
-``S_m - w_m / 2`` (``S_m`` the sum of the ``m`` largest samples' weights over the sample size), and
-the CCDF is linear between them. With equal weights and ``p * n`` a whole number ``m`` this is the
-midpoint of the ``m``-th and ``m + 1``-th largest responses, Au & Beck's intermediate threshold.
-
-Weighted samples. Every estimate carries its CCDF as a :class:`WeightedTail`
-(:attr:`TailEstimate.tail`): responses with probability masses, whose sum over the responses above
-``d`` is the estimate of ``P(response > d)`` at any ``d``, with the variance of that estimate. Tails
-of independent runs combine by the law of total probability (:mod:`.mixture`).
+The estimates, their intervals and the empirical CCDF they are read off: :mod:`.results`.
 
 Determinism. All randomness comes from :mod:`brakegym.reliability.streams`: the seed's own stream
 for Monte Carlo and subset simulation's level 0, streams derived from the seed
@@ -62,18 +43,16 @@ import math
 import numbers
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
+from .results import TailEstimate, WeightedTail, ccdf_quantiles, chain_correlation_factor, lognormal_interval
 from .streams import derived_seed, standard_normals
 
 Response = Callable[[np.ndarray], np.ndarray]
 
-# Two-sided 95 %: the standard normal's 0.975 quantile.
-_Z95 = 1.959963984540054
 # Brute force refuses a quantile with fewer expected exceedances than this.
 _MIN_EXPECTED_EXCEEDANCES = 10
 # Papaioannou et al. (2015): target acceptance rate and initial scaling of adaptive conditional sampling.
@@ -90,257 +69,6 @@ _LEVEL_TOLERANCE = 1e-9
 _MAX_KEPT_RESPONSES = 1_000_000
 
 
-@dataclass(frozen=True, eq=False)
-class WeightedTail:
-    """An estimate of the complementary distribution function (CCDF) of a response, as a weighted
-    sample: ``P(response > d)`` is estimated by the sum of :attr:`weights` over the
-    :attr:`responses` above ``d``, for any ``d``, with the variance of that estimate.
-
-    Every estimator's result is such a sample, so that tails of independent runs (strata of a
-    mixture, :mod:`.mixture`) combine by the law of total probability. The weights are probability
-    masses (they sum to at most 1); a sample with zero weight stands for nothing (subset
-    simulation's seeds, counted in the next level).
-
-    - ``"brute"`` (Monte Carlo, ``n = sample_size``): weights ``1 / n``. Only the largest
-      responses are kept (those above the threshold given, or those down to the lower end of the
-      quantile's interval), so the sample resolves the CCDF only from :attr:`resolved_from` up;
-      below it :meth:`exceedance` and :meth:`variance` are NaN. Variance ``P (1 - P) / n``.
-    - ``"subset"`` (``N = sample_size`` per level, ``p0 = level_probability``, intermediate
-      thresholds ``b_1 < ... < b_L`` = :attr:`levels`): level ``j``'s samples in
-      ``(b_j, b_{j+1}]`` (``b_0 = -inf``; those not carried on as seeds) weigh ``p0**j / N``, the
-      last level's samples ``p0**L / N``. The sum above ``d`` in ``[b_j, b_{j+1})`` is then
-      ``p0**j`` times level ``j``'s fraction above ``d``: subset simulation's CCDF estimate
-      itself. The variance is Au & Beck's (2001) at ``d``:
-      ``P**2 (sum_{i<j} (1 - p0) / (N p0) (1 + gamma_i) + (1 - P_j) / (N P_j) (1 + gamma_j(d)))``,
-      with ``P_j`` level ``j``'s fraction above ``d`` and ``gamma_j(d)`` the correlation factor of
-      its chains' indicators ``1[y > d]``; the completed levels' terms are :attr:`level_terms`.
-      :attr:`responses` holds level after level, ``N`` each: level 0 in sample order, each later
-      level as its chains' states step after step (``N / chains`` steps of ``chains`` states).
-    - ``"is"`` (importance sampling, ``n = sample_size`` final samples with importance weights
-      ``w_i``): weights ``w_i / n``; variance ``s**2 / n`` with ``s`` the sample standard
-      deviation of ``w_i 1[y_i > d]``.
-    - ``"mixture"``: ``sum_k pi_k`` times the CCDFs of independent :attr:`parts` with weights
-      ``pi_k`` = :attr:`part_weights`; variance ``sum_k pi_k**2`` times theirs. :attr:`responses`
-      and :attr:`weights` are the parts' samples with their weights times ``pi_k``.
-
-    A CCDF of zero (no sample above ``d``) has zero variance: whether a sample resolves ``d`` is
-    for :meth:`exceedance_count` to say. Instances pickle (plain arrays and numbers).
-
-    Attributes
-    ----------
-    method
-        ``"brute"``, ``"subset"``, ``"is"`` or ``"mixture"``.
-    responses
-        The sample's responses (read-only).
-    weights
-        Their probability masses (read-only).
-    sample_size
-        ``n`` of Monte Carlo or of the final importance-sampling run, ``N`` per level of subset
-        simulation; 0 for a mixture.
-    resolved_from
-        The smallest ``d`` whose CCDF the sample gives; ``-inf`` except for brute force's kept tail.
-    level_probability
-        Subset simulation: ``p0``.
-    levels
-        Subset simulation: the intermediate thresholds ``b_1, ..., b_L``.
-    chains
-        Subset simulation: the number of Markov chains per level.
-    level_terms
-        Subset simulation: ``(1 - p0) / (N p0) (1 + gamma_i)`` of each completed level ``i < L``.
-    parts
-        A mixture's tails.
-    part_weights
-        Their weights ``pi_k``.
-    """
-
-    method: str
-    responses: np.ndarray
-    weights: np.ndarray
-    sample_size: int = 0
-    resolved_from: float = -math.inf
-    level_probability: float = 0.0
-    levels: tuple[float, ...] = ()
-    chains: int = 0
-    level_terms: tuple[float, ...] = ()
-    parts: tuple[WeightedTail, ...] = ()
-    part_weights: tuple[float, ...] = ()
-
-    def __post_init__(self) -> None:
-        for name in ("responses", "weights"):
-            values = np.array(getattr(self, name), dtype=np.float64)
-            values.flags.writeable = False
-            object.__setattr__(self, name, values)
-        if self.responses.shape != self.weights.shape or self.responses.ndim != 1:
-            raise ValueError(
-                f"responses {self.responses.shape} and weights {self.weights.shape}: need two 1-D arrays of one length"
-            )
-
-    @classmethod
-    def mixture(cls, parts: tuple[WeightedTail, ...], part_weights: tuple[float, ...]) -> WeightedTail:
-        """The tail of ``sum_k part_weights[k] * parts[k]``, the parts independent estimates."""
-        parts, part_weights = tuple(parts), tuple(float(w) for w in part_weights)
-        responses = np.concatenate([part.responses for part in parts]) if parts else np.empty(0)
-        weights = np.concatenate([w * part.weights for part, w in zip(parts, part_weights)]) if parts else np.empty(0)
-        resolved_from = max((part.resolved_from for part in parts), default=-math.inf)
-        return cls("mixture", responses, weights, resolved_from=resolved_from, parts=parts, part_weights=part_weights)
-
-    def exceedance(self, d: float | np.ndarray) -> float | np.ndarray:
-        """The estimate of ``P(response > d)``, for each ``d`` (NaN below :attr:`resolved_from`)."""
-        points = np.asarray(d, dtype=np.float64)
-        if self.method == "mixture":
-            terms = (w * part.exceedance(points) for part, w in zip(self.parts, self.part_weights))
-            result = sum(terms, np.zeros(points.shape))
-        else:
-            order = np.argsort(self.responses, kind="stable")
-            ascending = self.responses[order]
-            # Masses summed from the largest response down: above[m] is the mass of ascending[m:].
-            above = np.append(np.cumsum(self.weights[order][::-1])[::-1], 0.0)
-            result = above[np.searchsorted(ascending, points, side="right")]
-            result = np.where(points < self.resolved_from, np.nan, result)
-        return _like(result, points)
-
-    def exceedance_count(self, d: float | np.ndarray) -> int | np.ndarray:
-        """How many samples above ``d`` the estimate at ``d`` rests on: of the whole sample for brute
-        force and importance sampling, of the level that holds ``d`` for subset simulation, summed
-        over the parts of a mixture. Few (under 10, say) means the sample does not resolve ``d``."""
-        points = np.asarray(d, dtype=np.float64)
-        if self.method == "mixture":
-            counts = sum((part.exceedance_count(points) for part in self.parts), np.zeros(points.shape, dtype=np.int64))
-        elif self.method == "subset":
-            counts = [np.count_nonzero(self._level(value) > value) for value in points.ravel()]
-            counts = np.array(counts, dtype=np.int64).reshape(points.shape)
-        else:
-            ascending = np.sort(self.responses)
-            counts = len(ascending) - np.searchsorted(ascending, points, side="right")
-        return counts if points.ndim else int(counts)
-
-    def variance(self, d: float | np.ndarray) -> float | np.ndarray:
-        """The estimated variance of :meth:`exceedance` at each ``d`` (see the class notes)."""
-        points = np.asarray(d, dtype=np.float64)
-        probabilities = np.asarray(self.exceedance(points), dtype=np.float64)
-        if self.method == "mixture":
-            terms = (w**2 * part.variance(points) for part, w in zip(self.parts, self.part_weights))
-            result = sum(terms, np.zeros(points.shape))
-        elif self.method == "brute":
-            result = probabilities * (1.0 - probabilities) / self.sample_size
-        elif self.method == "is":
-            n = self.sample_size
-            order = np.argsort(self.responses, kind="stable")
-            ascending, importance = self.responses[order], self.weights[order] * n
-            first = np.append(np.cumsum(importance[::-1])[::-1], 0.0)
-            second = np.append(np.cumsum(importance[::-1] ** 2)[::-1], 0.0)
-            above = np.searchsorted(ascending, points, side="right")
-            mean = first[above] / n
-            result = np.maximum(second[above] / n - mean**2, 0.0) * n / (n - 1) / n
-        else:
-            squared_cov = np.array([self._squared_cov(value) for value in points.ravel()]).reshape(points.shape)
-            result = probabilities**2 * squared_cov
-        return _like(result, points)
-
-    def coefficient_of_variation(self, d: float | np.ndarray) -> float | np.ndarray:
-        """``sqrt(variance(d)) / exceedance(d)``; infinite where the estimate is zero."""
-        points = np.asarray(d, dtype=np.float64)
-        probabilities = np.asarray(self.exceedance(points), dtype=np.float64)
-        spread = np.sqrt(np.asarray(self.variance(points), dtype=np.float64))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            result = np.where(probabilities > 0.0, spread / np.where(probabilities > 0.0, probabilities, 1.0), np.inf)
-        result = np.where(np.isnan(probabilities), np.nan, result)
-        return _like(result, points)
-
-    def _level_index(self, value: float) -> int:
-        """Subset simulation: the level whose samples give the CCDF at ``value``, the number of
-        intermediate thresholds at or below it. At a threshold ``b_{j+1}`` itself this is level
-        ``j + 1``, all of whose samples exceed it, except where the chains' repeated states tie
-        at ``b_{j+1}``: then fewer than ``N p0`` of level ``j`` exceed it, and the weighted sample,
-        like subset simulation with that threshold, counts level ``j + 1``'s."""
-        return int(np.searchsorted(np.asarray(self.levels), value, side="right"))
-
-    def _level(self, value: float) -> np.ndarray:
-        """Subset simulation: the responses of the level that holds ``value``, as (steps, chains)."""
-        level, n = self._level_index(value), self.sample_size
-        block = self.responses[level * n : (level + 1) * n]
-        return block[None, :] if level == 0 else block.reshape(n // self.chains, self.chains)
-
-    def _squared_cov(self, value: float) -> float:
-        """Subset simulation: Au & Beck's squared coefficient of variation at ``value``."""
-        level = self._level_index(value)
-        exceeds = self._level(value) > value
-        share = float(np.mean(exceeds))
-        if share == 0.0:
-            return 0.0
-        own = (1.0 - share) / (self.sample_size * share) * (1.0 + _chain_correlation_factor(exceeds))
-        return float(sum(self.level_terms[:level])) + own
-
-
-@dataclass(frozen=True)
-class TailEstimate:
-    """A tail estimate: a quantile or an exceedance probability, with 95 % intervals.
-
-    Attributes
-    ----------
-    method
-        ``"brute"``, ``"subset"`` or ``"is"``.
-    target
-        What was given: ``"probability"`` (the quantile was estimated) or ``"threshold"`` (the
-        exceedance probability was estimated).
-    probability
-        The probability asked for, or the estimated exceedance probability of :attr:`threshold`.
-    probability_ci95
-        95 % interval of the exceedance probability of :attr:`threshold`.
-    threshold
-        The response value: the estimated quantile, or the threshold given.
-    threshold_ci95
-        95 % interval of the quantile; ``(threshold, threshold)`` for a given threshold.
-    model_evaluations
-        Response rows evaluated.
-    seconds
-        Wall time of the estimate.
-    coefficient_of_variation
-        Estimated coefficient of variation of the probability estimate at :attr:`threshold`.
-    levels
-        Intermediate thresholds of subset simulation or of the cross-entropy levels; empty for
-        brute force.
-    diagnostics
-        Method-specific figures (JSON-ready): exceedance counts, acceptance rates and correlation
-        factors per level, importance-density means, effective sample sizes.
-    tail
-        The estimate as a weighted sample (:class:`WeightedTail`): the CCDF and its variance at
-        any threshold. Not part of :meth:`as_dict`, and not compared by ``==``.
-    """
-
-    method: str
-    target: str
-    probability: float
-    probability_ci95: tuple[float, float]
-    threshold: float
-    threshold_ci95: tuple[float, float]
-    model_evaluations: int
-    seconds: float
-    coefficient_of_variation: float
-    levels: tuple[float, ...] = ()
-    diagnostics: dict[str, Any] = field(default_factory=dict)
-    tail: WeightedTail | None = field(default=None, compare=False, repr=False)
-
-    def as_dict(self) -> dict[str, Any]:
-        """The fields the command line writes, JSON-ready (non-finite numbers become None).
-
-        ``braking_distance_m`` is :attr:`threshold` and ``ci95_m`` is :attr:`threshold_ci95`: the
-        library is generic, but its one user's response is a braking distance in metres, and its
-        output files keep these names. ``threshold`` is :attr:`threshold` too, under its generic
-        name.
-        """
-        return {
-            "probability": _json_number(self.probability),
-            "braking_distance_m": _json_number(self.threshold),
-            "ci95_m": [_json_number(value) for value in self.threshold_ci95],
-            "model_evaluations": self.model_evaluations,
-            "method": self.method,
-            "seconds": self.seconds,
-            "probability_ci95": [_json_number(value) for value in self.probability_ci95],
-            "threshold": _json_number(self.threshold),
-        }
-
-
 def brute_force(
     response: Response,
     dims: int,
@@ -355,7 +83,7 @@ def brute_force(
     Samples are drawn and evaluated one batch at a time. With ``threshold``, only the responses
     above it are kept (at most the largest million), and the probability is the fraction of
     exceedances with a Clopper-Pearson interval. With ``probability``, the quantile is read off the empirical CCDF
-    (see the module's notes) and its interval lies between the order statistics of ranks ``l``
+    (see :mod:`.results`) and its interval lies between the order statistics of ranks ``l``
     and ``u``, the binomial ranks with ``P(l <= B < u) >= 0.95`` for ``B ~ Binomial(n, 1 - p)``,
     the number of samples below the true quantile; only the largest ``n - l + 2`` responses are
     kept (in a buffer of twice that plus a batch). The probability interval is Clopper-Pearson's
@@ -381,8 +109,8 @@ def brute_force(
         The most rows per call of ``response``.
     """
     start = time.perf_counter()
-    _check_target(probability, threshold)
-    n_samples = _check_integer("n_samples", n_samples, 1)
+    check_target(probability, threshold)
+    n_samples = check_integer("n_samples", n_samples, 1)
     if probability is not None:
         needed = math.ceil(_MIN_EXPECTED_EXCEEDANCES / min(probability, 1.0 - probability))
         if n_samples < needed:
@@ -390,7 +118,7 @@ def brute_force(
                 f"n_samples = {n_samples} is too few for probability = {probability}: "
                 f"{_MIN_EXPECTED_EXCEEDANCES} expected exceedances need n_samples >= {needed}"
             )
-    evaluate = _CountedResponse(response, dims, batch_size)
+    evaluate = CountedResponse(response, dims, batch_size)
     if probability is None:
         exceedances, largest = _exceeding_responses(evaluate, seed, n_samples, threshold, _MAX_KEPT_RESPONSES)
         threshold_ci95 = (float(threshold), float(threshold))
@@ -463,7 +191,7 @@ def subset_simulation(
     level's conditional probability, ``gamma_0 = 0`` and, over the ``N p0`` chains of
     ``N_s = 1 / p0`` states, ``gamma_i = 2 sum_{k=1}^{N_s - 1} (1 - k / N_s) rho_i(k)``, where
     ``rho_i(k)`` is the lag-``k`` correlation of the chains' exceedance indicators. Intervals as in
-    the module's notes; the CCDF between intermediate thresholds ``b_k`` and ``b_{k+1}`` is ``p0**k``
+    :mod:`.results`; the CCDF between intermediate thresholds ``b_k`` and ``b_{k+1}`` is ``p0**k``
     times level ``k``'s.
 
     The levels' estimates are correlated (the chains of a level start from the previous level's
@@ -494,12 +222,12 @@ def subset_simulation(
         When the threshold is not reached within ``max_levels`` levels.
     """
     start = time.perf_counter()
-    _check_target(probability, threshold)
-    chains, _ = _subset_layout(n_per_level, level_probability)
-    max_levels = _check_integer("max_levels", max_levels, 1)
+    check_target(probability, threshold)
+    chains, _ = subset_layout(n_per_level, level_probability)
+    max_levels = check_integer("max_levels", max_levels, 1)
     if probability is not None:
         _check_reachable(probability, level_probability, max_levels, n_per_level)
-    run = _SubsetRun(_CountedResponse(response, dims, batch_size), seed, n_per_level, level_probability)
+    run = SubsetRun(CountedResponse(response, dims, batch_size), seed, n_per_level, level_probability)
     while not _subset_done(run.level_responses[-1], chains, probability, threshold, level_probability, run.depth):
         if run.depth == max_levels:
             raise RuntimeError(
@@ -533,7 +261,7 @@ def importance_sampling(
     target is reached, ``n_final`` fresh samples from the last density give the estimate:
     ``P = mean(w * 1[y > b])`` with coefficient of variation
     ``std(w * 1[y > b]) / (P sqrt(n_final))``; a quantile is read off the final sample's weighted
-    CCDF, intervals as in the module's notes.
+    CCDF, intervals as in :mod:`.results`.
 
     Only the mean is adapted: a covariance estimated from a few hundred elite samples in tens of
     dimensions is noisy, and the weights of such densities degenerate as the dimension grows
@@ -570,9 +298,9 @@ def importance_sampling(
         final run has no exceedance.
     """
     start = time.perf_counter()
-    _check_target(probability, threshold)
-    n_per_level, n_final, max_levels = _importance_settings(n_per_level, n_final, level_probability, max_levels)
-    evaluate = _CountedResponse(response, dims, batch_size)
+    check_target(probability, threshold)
+    n_per_level, n_final, max_levels = importance_settings(n_per_level, n_final, level_probability, max_levels)
+    evaluate = CountedResponse(response, dims, batch_size)
     mean, thresholds, mean_norms = np.zeros(evaluate.dims), [], [0.0]
     for level in range(max_levels):
         stream = derived_seed(seed, _CROSS_ENTROPY_STREAM, level)
@@ -610,28 +338,28 @@ def importance_sampling(
     )
 
 
-def _importance_settings(
+def importance_settings(
     n_per_level: int, n_final: int | None, level_probability: float, max_levels: int
 ) -> tuple[int, int, int]:
     """:func:`importance_sampling`'s settings, checked: ``n_per_level``, ``n_final``, ``max_levels``."""
-    n_per_level = _check_integer("n_per_level", n_per_level, 2)
-    n_final = _check_integer("n_final", n_per_level if n_final is None else n_final, 2)
-    _check_level_probability(level_probability)
+    n_per_level = check_integer("n_per_level", n_per_level, 2)
+    n_final = check_integer("n_final", n_per_level if n_final is None else n_final, 2)
+    check_level_probability(level_probability)
     if n_per_level * level_probability < 1:
         raise ValueError(
             f"n_per_level = {n_per_level} with level_probability = {level_probability} leaves no sample above "
             f"the intermediate thresholds: need n_per_level * level_probability >= 1"
         )
-    return n_per_level, n_final, _check_integer("max_levels", max_levels, 1)
+    return n_per_level, n_final, check_integer("max_levels", max_levels, 1)
 
 
-class _SubsetRun:
+class SubsetRun:
     """Subset simulation's levels, one at a time: level 0 on construction, a conditional level per
     :meth:`advance` (see :func:`subset_simulation`)."""
 
-    def __init__(self, evaluate: _CountedResponse, seed: int, n_per_level: int, level_probability: float) -> None:
+    def __init__(self, evaluate: CountedResponse, seed: int, n_per_level: int, level_probability: float) -> None:
         self.evaluate, self.seed, self.level_probability = evaluate, seed, level_probability
-        self.chains, self.chain_length = _subset_layout(n_per_level, level_probability)
+        self.chains, self.chain_length = subset_layout(n_per_level, level_probability)
         self.states = standard_normals(seed, np.arange(n_per_level), evaluate.dims)[None]
         self.level_responses: list[np.ndarray] = [evaluate(self.states[0])[None]]
         self.selections: list[np.ndarray] = []
@@ -669,7 +397,7 @@ class _SubsetRun:
         return _subset_tail(self.level_responses, self.selections, self.thresholds, self.level_probability, self.chains)
 
 
-class _CountedResponse:
+class CountedResponse:
     """The response called in batches of at most ``batch_size`` rows, its output checked, its
     rows counted."""
 
@@ -677,8 +405,8 @@ class _CountedResponse:
         if not callable(response):
             raise ValueError(f"response = {response!r}: need a callable response(u) -> y")
         self.response = response
-        self.dims = _check_integer("dims", dims, 1)
-        self.batch_size = _check_integer("batch_size", batch_size, 1)
+        self.dims = check_integer("dims", dims, 1)
+        self.batch_size = check_integer("batch_size", batch_size, 1)
         self.evaluations = 0
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
@@ -701,7 +429,7 @@ class _CountedResponse:
         return values
 
 
-def _check_target(probability: float | None, threshold: float | None) -> None:
+def check_target(probability: float | None, threshold: float | None) -> None:
     if (probability is None) == (threshold is None):
         raise ValueError(
             f"probability = {probability!r}, threshold = {threshold!r}: give exactly one of them "
@@ -713,53 +441,21 @@ def _check_target(probability: float | None, threshold: float | None) -> None:
         raise ValueError(f"threshold = {threshold!r}: need a finite number")
 
 
-def _check_integer(name: str, value: int, minimum: int) -> int:
+def check_integer(name: str, value: int, minimum: int) -> int:
     if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < minimum:
         raise ValueError(f"{name} = {value!r}: need an integer >= {minimum}")
     return int(value)
 
 
-def _check_level_probability(level_probability: float) -> None:
+def check_level_probability(level_probability: float) -> None:
     if not (isinstance(level_probability, numbers.Real) and 0.0 < level_probability <= 0.5):
         raise ValueError(f"level_probability = {level_probability!r}: need a number in (0, 0.5]")
-
-
-def _like(result: np.ndarray, points: np.ndarray) -> float | np.ndarray:
-    """A float for a scalar argument, else the array."""
-    return result if points.ndim else float(result)
-
-
-def _json_number(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
 
 
 def _clopper_pearson(successes: int, trials: int) -> tuple[float, float]:
     low = 0.0 if successes == 0 else float(stats.beta.ppf(0.025, successes, trials - successes + 1))
     high = 1.0 if successes == trials else float(stats.beta.ppf(0.975, successes + 1, trials - successes))
     return low, high
-
-
-def _lognormal_interval(probability: float, coefficient_of_variation: float) -> tuple[float, float]:
-    spread = _Z95 * math.sqrt(math.log1p(coefficient_of_variation**2))
-    return probability * math.exp(-spread), probability * math.exp(spread)
-
-
-def _ccdf_quantiles(values: np.ndarray, weights: np.ndarray | None, probabilities: np.ndarray) -> np.ndarray:
-    """The responses at which the sample's CCDF (mid-jump plotting positions, see the module's
-    notes) takes the given probabilities; +inf above the largest sample's position, -inf below the
-    smallest's. ``weights`` None: equal weights."""
-    order = np.argsort(values, kind="stable")[::-1]
-    descending = values[order]
-    if weights is None:
-        positions = (np.arange(len(values)) + 0.5) / len(values)
-    else:
-        shares = weights[order] / len(values)
-        positions = np.cumsum(shares) - shares / 2
-    probabilities = np.asarray(probabilities, dtype=np.float64)
-    quantiles = np.interp(probabilities, positions, descending)
-    quantiles[probabilities < positions[0]] = np.inf
-    quantiles[probabilities > positions[-1]] = -np.inf
-    return quantiles
 
 
 def _binomial_ranks(n: int, probability: float) -> tuple[int, int]:
@@ -779,7 +475,7 @@ def _binomial_ranks(n: int, probability: float) -> tuple[int, int]:
 
 
 def _exceeding_responses(
-    evaluate: _CountedResponse, seed: int, n_samples: int, threshold: float, keep: int
+    evaluate: CountedResponse, seed: int, n_samples: int, threshold: float, keep: int
 ) -> tuple[int, np.ndarray]:
     """How many of the Monte Carlo sample's responses exceed ``threshold``, and the largest
     ``keep`` of those, in descending order; batch by batch, the kept ones cut back to the ``keep``
@@ -801,7 +497,7 @@ def _exceeding_responses(
     return exceedances, np.sort(kept)[::-1]
 
 
-def _largest_responses(evaluate: _CountedResponse, seed: int, n_samples: int, keep: int) -> np.ndarray:
+def _largest_responses(evaluate: CountedResponse, seed: int, n_samples: int, keep: int) -> np.ndarray:
     """The ``keep`` largest responses of the Monte Carlo sample, in descending order, evaluated
     batch by batch into a buffer of ``2 keep + batch_size`` values that is cut back to its ``keep``
     largest whenever it is full (each cut frees room for at least ``keep`` values, so the cuts cost
@@ -819,10 +515,10 @@ def _largest_responses(evaluate: _CountedResponse, seed: int, n_samples: int, ke
     return np.sort(np.partition(buffer[:filled], filled - keep)[filled - keep :])[::-1]
 
 
-def _subset_layout(n_per_level: int, level_probability: float) -> tuple[int, int]:
+def subset_layout(n_per_level: int, level_probability: float) -> tuple[int, int]:
     """Number of chains and their length for subset simulation, checked."""
-    n_per_level = _check_integer("n_per_level", n_per_level, 2)
-    _check_level_probability(level_probability)
+    n_per_level = check_integer("n_per_level", n_per_level, 2)
+    check_level_probability(level_probability)
     chains = round(n_per_level * level_probability)
     chain_length = round(1.0 / level_probability)
     if abs(1.0 / level_probability - chain_length) > 1e-9:
@@ -889,7 +585,7 @@ def _intermediate_threshold(responses: np.ndarray, chains: int) -> tuple[float, 
 
 
 def _conditional_sampling_level(
-    evaluate: _CountedResponse,
+    evaluate: CountedResponse,
     seeds: np.ndarray,
     seed_responses: np.ndarray,
     threshold: float,
@@ -920,23 +616,6 @@ def _conditional_sampling_level(
     return states, responses, scaling, accepted / max(1, chains * (chain_length - 1))
 
 
-def _chain_correlation_factor(exceeds: np.ndarray) -> float:
-    """Au & Beck's (2001) ``gamma`` of exceedance indicators of shape (chain_length, chains):
-    ``2 sum_k (1 - k / N_s) R(k) / R(0)`` with ``R(k)`` the lag-``k`` covariance pooled over
-    chains. 0 for independent samples (one state per chain) or constant indicators."""
-    chain_length, chains = exceeds.shape
-    share = float(np.mean(exceeds))
-    variance = share * (1.0 - share)
-    if chain_length == 1 or variance == 0.0:
-        return 0.0
-    indicators = exceeds.astype(np.float64)
-    gamma = 0.0
-    for lag in range(1, chain_length):
-        products = float(np.sum(indicators[:-lag] * indicators[lag:])) / ((chain_length - lag) * chains)
-        gamma += (1.0 - lag / chain_length) * (products - share**2) / variance
-    return 2.0 * gamma
-
-
 def _subset_quantiles(
     level_responses: list[np.ndarray], level_probability: float, probabilities: np.ndarray
 ) -> np.ndarray:
@@ -949,11 +628,11 @@ def _subset_quantiles(
         while level < last and probability < level_probability ** (level + 1) * (1.0 + _LEVEL_TOLERANCE):
             level += 1
         conditional = np.array([probability / level_probability**level])
-        quantiles[position] = _ccdf_quantiles(level_responses[level].ravel(), None, conditional)[0]
+        quantiles[position] = ccdf_quantiles(level_responses[level].ravel(), None, conditional)[0]
     return quantiles
 
 
-def _subset_estimate(run: _SubsetRun, probability: float | None, threshold: float | None, start: float) -> TailEstimate:
+def _subset_estimate(run: SubsetRun, probability: float | None, threshold: float | None, start: float) -> TailEstimate:
     """The estimate, its coefficient of variation (Au & Beck 2001) and intervals from the levels:
     their responses, and for all but the last the mask of the samples above the next intermediate
     threshold."""
@@ -968,11 +647,11 @@ def _subset_estimate(run: _SubsetRun, probability: float | None, threshold: floa
     squared_cov, gammas = 0.0, []
     for level, responses in enumerate(level_responses):
         share = level_probability if level < last else conditional
-        gamma = _chain_correlation_factor(selections[level] if level < last else responses > threshold)
+        gamma = chain_correlation_factor(selections[level] if level < last else responses > threshold)
         squared_cov += (1.0 - share) / (responses.size * share) * (1.0 + gamma)
         gammas.append(gamma)
     cov = math.sqrt(squared_cov)
-    probability_ci95 = _lognormal_interval(estimate, cov)
+    probability_ci95 = lognormal_interval(estimate, cov)
     if probability is None:
         threshold_ci95 = (threshold, threshold)
     else:
@@ -1013,7 +692,7 @@ def _subset_tail(
             mass[selections[level].ravel()] = 0.0
         weights.append(mass)
     terms = [
-        (1.0 - level_probability) / (n * level_probability) * (1.0 + _chain_correlation_factor(selected))
+        (1.0 - level_probability) / (n * level_probability) * (1.0 + chain_correlation_factor(selected))
         for selected in selections
     ]
     return WeightedTail(
@@ -1028,7 +707,7 @@ def _subset_tail(
     )
 
 
-def _shifted_run(evaluate: _CountedResponse, mean: np.ndarray, stream: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+def _shifted_run(evaluate: CountedResponse, mean: np.ndarray, stream: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     """``n`` samples ``mean + z`` (``z`` from ``stream``) evaluated batch by batch: their responses
     and log importance weights ``log phi(u) - log h(u) = -mean.z - |mean|**2 / 2``."""
     responses, log_weights = np.empty(n), np.empty(n)
@@ -1057,10 +736,10 @@ def _cross_entropy_threshold(
     least ``n p0`` samples exceed it, else the sample's ``1 - p0`` quantile."""
     if probability is not None:
         weights = np.exp(log_weights)
-        threshold = float(_ccdf_quantiles(responses, weights, np.array([probability]))[0])
+        threshold = float(ccdf_quantiles(responses, weights, np.array([probability]))[0])
     if math.isfinite(threshold) and np.count_nonzero(responses > threshold) >= level_probability * len(responses):
         return threshold, True
-    return float(_ccdf_quantiles(responses, None, np.array([level_probability]))[0]), False
+    return float(ccdf_quantiles(responses, None, np.array([level_probability]))[0]), False
 
 
 def _cross_entropy_mean(
@@ -1082,7 +761,7 @@ def _importance_estimate(
     """The final run's estimate (fields of :class:`TailEstimate`) from its responses and weights."""
     n = len(responses)
     if probability is not None:
-        threshold = float(_ccdf_quantiles(responses, weights, np.array([probability]))[0])
+        threshold = float(ccdf_quantiles(responses, weights, np.array([probability]))[0])
     weighted = np.where(responses > threshold, weights, 0.0)
     estimate = float(weighted.mean())
     if not (estimate > 0.0 and math.isfinite(threshold)):
@@ -1090,11 +769,11 @@ def _importance_estimate(
             f"the final importance-sampling run of {n} samples has no exceedance of {threshold}: raise n_final"
         )
     cov = float(weighted.std(ddof=1)) / (estimate * math.sqrt(n))
-    probability_ci95 = _lognormal_interval(estimate if probability is None else probability, cov)
+    probability_ci95 = lognormal_interval(estimate if probability is None else probability, cov)
     if probability is None:
         threshold_ci95 = (threshold, threshold)
     else:
-        ends = _ccdf_quantiles(responses, weights, np.array(probability_ci95[::-1]))
+        ends = ccdf_quantiles(responses, weights, np.array(probability_ci95[::-1]))
         threshold_ci95 = (float(ends[0]), float(ends[1]))
     return {
         "target": "threshold" if probability is None else "probability",

@@ -81,21 +81,18 @@ import numpy as np
 from scipy import stats
 
 from .estimators import (
-    _Z95,
+    CountedResponse,
     Response,
-    TailEstimate,
-    WeightedTail,
-    _check_integer,
-    _check_target,
-    _CountedResponse,
-    _importance_settings,
-    _json_number,
-    _subset_layout,
-    _SubsetRun,
+    SubsetRun,
     brute_force,
+    check_integer,
+    check_target,
     importance_sampling,
+    importance_settings,
+    subset_layout,
     subset_simulation,
 )
+from .results import Z95, TailEstimate, WeightedTail, json_number
 from .streams import derived_seed
 
 _ESTIMATORS: dict[str, Callable[..., TailEstimate]] = {
@@ -188,7 +185,7 @@ def mixture_tail(
         When no component resolves the answer (every one bounded, unreached or unresolved).
     """
     start = time.perf_counter()
-    _check_target(probability, threshold)
+    check_target(probability, threshold)
     options = _check_settings(method, settings)
     if not (isinstance(negligible, numbers.Real) and 0.0 < negligible < 1.0):
         raise ValueError(f"negligible = {negligible!r}: need a number in the open interval (0, 1)")
@@ -216,8 +213,8 @@ class _Part:
 
     def __init__(self, index: int, weight: float, response: Response, dims: int, batch_size: int) -> None:
         self.index, self.weight, self.response = index, weight, response
-        self.counted = _CountedResponse(response, dims, batch_size)
-        self.run: _SubsetRun | None = None
+        self.counted = CountedResponse(response, dims, batch_size)
+        self.run: SubsetRun | None = None
         self.pilot: WeightedTail | None = None
         self.final: TailEstimate | None = None
         self.final_evaluations, self.attempted = 0, False
@@ -286,7 +283,7 @@ class _Pilot:
             chosen = max(needs, key=lambda part: part.bound(centre))
             if chosen.run is None:
                 stream = derived_seed(self.seed, _PILOT_STREAM, chosen.index)
-                chosen.run = _SubsetRun(chosen.counted, stream, self.n_per_level, _PILOT_LEVEL_PROBABILITY)
+                chosen.run = SubsetRun(chosen.counted, stream, self.n_per_level, _PILOT_LEVEL_PROBABILITY)
             else:
                 chosen.run.advance()
             chosen.pilot = chosen.run.tail()
@@ -304,7 +301,7 @@ class _Pilot:
         centre = float(_quantiles(tails, weights, [self.probability])[0])
         if not math.isfinite(centre):
             return (centre,) * 3
-        spread = _Z95 * _log_spread(tails, weights, centre)
+        spread = Z95 * _log_spread(tails, weights, centre)
         ends = [self.probability * math.exp(spread), self.probability * math.exp(-spread)]
         low, high = _quantiles(tails, weights, ends)
         return float(low), centre, float(high)
@@ -406,7 +403,7 @@ def _estimate(
     exceedance = math.fsum(w * tail.exceedance(answer) for tail, w in zip(tails, weights))
     variance = math.fsum(w**2 * tail.variance(answer) for tail, w in zip(tails, weights))
     cov = math.sqrt(variance) / exceedance
-    spread = _Z95 * math.sqrt(math.log1p(cov**2))
+    spread = Z95 * math.sqrt(math.log1p(cov**2))
     centre = exceedance if probability is None else probability
     probability_ci95 = (centre * math.exp(-spread), centre * math.exp(spread) + bound)
     if probability is None:
@@ -434,8 +431,8 @@ def _estimate(
             "unmodelled_weight": unmodelled,
             "bound": bound,
             "negligible": negligible,
-            "pilot_threshold": _json_number(centre_pilot),
-            "pilot_interval": [_json_number(low), _json_number(high)],
+            "pilot_threshold": json_number(centre_pilot),
+            "pilot_interval": [json_number(low), json_number(high)],
             "pilot_evaluations": pilot_evaluations,
         },
         tail=WeightedTail.mixture(tuple(tails), tuple(weights)),
@@ -457,7 +454,7 @@ def _describe(part: _Part, answer: float, bound: float | None) -> dict[str, Any]
         line.update(
             probability=conditional,
             contribution=part.weight * conditional,
-            coefficient_of_variation=_json_number(float(tail.coefficient_of_variation(answer))),
+            coefficient_of_variation=json_number(float(tail.coefficient_of_variation(answer))),
             exceedances=int(tail.exceedance_count(answer)),
             levels=[] if part.final is None else list(part.final.levels),
         )
@@ -492,7 +489,7 @@ def _upper_bound(tail: WeightedTail, d: float) -> float:
     level, n = tail._level_index(d), tail.sample_size
     above = int(tail.exceedance_count(d))
     fraction = 1.0 if above >= n else float(stats.beta.ppf(0.975, above + 1, n - above))
-    spread = _Z95 * math.sqrt(math.log1p(math.fsum(tail.level_terms[:level])))
+    spread = Z95 * math.sqrt(math.log1p(math.fsum(tail.level_terms[:level])))
     return min(1.0, tail.level_probability**level * fraction * math.exp(spread))
 
 
@@ -540,14 +537,14 @@ def _check_settings(method: str, settings: dict[str, Any]) -> dict[str, Any]:
     if method == "brute":
         if "n_samples" not in settings:
             raise ValueError("method 'brute' needs n_samples in the settings")
-        _check_integer("n_samples", options["n_samples"], 1)
+        check_integer("n_samples", options["n_samples"], 1)
     elif method == "subset":
-        _subset_layout(options["n_per_level"], options["level_probability"])
-        _check_integer("max_levels", options["max_levels"], 1)
+        subset_layout(options["n_per_level"], options["level_probability"])
+        check_integer("max_levels", options["max_levels"], 1)
     else:
         levels = options["level_probability"], options["max_levels"]
-        _importance_settings(options["n_per_level"], options["n_final"], *levels)
-    _check_integer("batch_size", options["batch_size"], 1)
+        importance_settings(options["n_per_level"], options["n_final"], *levels)
+    check_integer("batch_size", options["batch_size"], 1)
     return options
 
 
