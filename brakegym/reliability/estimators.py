@@ -1,14 +1,13 @@
 """Tail estimators for any vectorised response of standard-normal inputs.
 
-A *response* is a function ``response(u) -> y``: ``u`` of shape ``(n, dims)`` holds ``n`` points
-of the standard-normal space, ``y`` of shape ``(n,)`` their responses, larger being worse (a
-braking distance). Exceedance means ``response(u) > threshold``. Each estimator takes either
+A *response* is a function ``response(u) -> y`` of standard normals, larger being worse (see
+:mod:`.response`). Each estimator takes either
 
 - ``probability=p``: the quantile ``y_p`` with ``P(response > y_p) = p``, and its 95 % interval;
 - ``threshold=b``: the exceedance probability ``P(response > b)``, and its 95 % interval;
 
-and returns a :class:`TailEstimate`. The response is called with at most ``batch_size`` rows at a
-time, and every row is counted in :attr:`TailEstimate.model_evaluations`.
+and returns a :class:`~.results.TailEstimate`. The response is called with at most ``batch_size`` rows
+at a time, and every row is counted in :attr:`~.results.TailEstimate.model_evaluations`.
 
 The methods:
 
@@ -40,18 +39,16 @@ importance-sampling runs. The same seed gives the same estimate bit for bit what
 from __future__ import annotations
 
 import math
-import numbers
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
+from .checks import check_integer, check_level_probability, check_target
+from .response import CountedResponse, Response
 from .results import TailEstimate, WeightedTail, ccdf_quantiles, chain_correlation_factor, lognormal_interval
 from .streams import derived_seed, standard_normals
-
-Response = Callable[[np.ndarray], np.ndarray]
 
 # Brute force refuses a quantile with fewer expected exceedances than this.
 _MIN_EXPECTED_EXCEEDANCES = 10
@@ -95,7 +92,7 @@ def brute_force(
     Parameters
     ----------
     response
-        ``response(u) -> y`` on rows of standard normals (see the module's notes).
+        ``response(u) -> y`` on rows of standard normals (see :mod:`.response`).
     dims
         Number of standard-normal inputs.
     seed
@@ -395,61 +392,6 @@ class SubsetRun:
     def tail(self) -> WeightedTail:
         """The levels so far as a :class:`WeightedTail`."""
         return _subset_tail(self.level_responses, self.selections, self.thresholds, self.level_probability, self.chains)
-
-
-class CountedResponse:
-    """The response called in batches of at most ``batch_size`` rows, its output checked, its
-    rows counted."""
-
-    def __init__(self, response: Response, dims: int, batch_size: int) -> None:
-        if not callable(response):
-            raise ValueError(f"response = {response!r}: need a callable response(u) -> y")
-        self.response = response
-        self.dims = check_integer("dims", dims, 1)
-        self.batch_size = check_integer("batch_size", batch_size, 1)
-        self.evaluations = 0
-
-    def __call__(self, points: np.ndarray) -> np.ndarray:
-        values = np.empty(len(points))
-        for begin in range(0, len(points), self.batch_size):
-            batch = points[begin : begin + self.batch_size]
-            # Read-only: a response that wrote into its input would corrupt the chains' states.
-            batch = batch.view()
-            batch.flags.writeable = False
-            result = np.asarray(self.response(batch), dtype=np.float64)
-            if result.shape != (len(batch),):
-                raise ValueError(
-                    f"response returned shape {result.shape} for {len(batch)} rows: need one value per row, "
-                    f"shape ({len(batch)},)"
-                )
-            if np.isnan(result).any():
-                raise ValueError(f"response returned NaN for rows {np.flatnonzero(np.isnan(result))[:5] + begin}")
-            values[begin : begin + len(batch)] = result
-            self.evaluations += len(batch)
-        return values
-
-
-def check_target(probability: float | None, threshold: float | None) -> None:
-    if (probability is None) == (threshold is None):
-        raise ValueError(
-            f"probability = {probability!r}, threshold = {threshold!r}: give exactly one of them "
-            f"(a probability to estimate its quantile, or a threshold to estimate its exceedance probability)"
-        )
-    if probability is not None and not (isinstance(probability, numbers.Real) and 0.0 < probability < 1.0):
-        raise ValueError(f"probability = {probability!r}: need a number in the open interval (0, 1)")
-    if threshold is not None and not (isinstance(threshold, numbers.Real) and math.isfinite(threshold)):
-        raise ValueError(f"threshold = {threshold!r}: need a finite number")
-
-
-def check_integer(name: str, value: int, minimum: int) -> int:
-    if not isinstance(value, numbers.Integral) or isinstance(value, bool) or value < minimum:
-        raise ValueError(f"{name} = {value!r}: need an integer >= {minimum}")
-    return int(value)
-
-
-def check_level_probability(level_probability: float) -> None:
-    if not (isinstance(level_probability, numbers.Real) and 0.0 < level_probability <= 0.5):
-        raise ValueError(f"level_probability = {level_probability!r}: need a number in (0, 0.5]")
 
 
 def _clopper_pearson(successes: int, trials: int) -> tuple[float, float]:

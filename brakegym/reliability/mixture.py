@@ -80,18 +80,16 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from .checks import check_integer, check_target
 from .estimators import (
-    CountedResponse,
-    Response,
     SubsetRun,
     brute_force,
-    check_integer,
-    check_target,
     importance_sampling,
     importance_settings,
     subset_layout,
     subset_simulation,
 )
+from .response import CountedResponse, Response
 from .results import Z95, TailEstimate, WeightedTail, json_number
 from .streams import derived_seed
 
