@@ -11,8 +11,9 @@ function of standard-normal inputs (see :mod:`.estimators`).
   discrete input, one component per value) from an estimate per component.
 """
 
-from .estimators import TailEstimate, WeightedTail, brute_force, importance_sampling, subset_simulation
+from .estimators import TailEstimate, WeightedTail, importance_sampling, subset_simulation
 from .mixture import mixture_tail
+from .montecarlo import brute_force
 from .streams import derived_seed, standard_normals, uniforms
 
 __all__ = [
