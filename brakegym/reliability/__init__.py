@@ -11,10 +11,11 @@ function of standard-normal inputs (see :mod:`.estimators`).
   discrete input, one component per value) from an estimate per component.
 """
 
-from .estimators import TailEstimate, WeightedTail, importance_sampling, subset_simulation
+from .estimators import TailEstimate, WeightedTail, importance_sampling
 from .mixture import mixture_tail
 from .montecarlo import brute_force
 from .streams import derived_seed, standard_normals, uniforms
+from .subset import subset_simulation
 
 __all__ = [
     "TailEstimate",

@@ -82,16 +82,14 @@ from scipy import stats
 
 from .checks import check_integer, check_target
 from .estimators import (
-    SubsetRun,
     importance_sampling,
     importance_settings,
-    subset_layout,
-    subset_simulation,
 )
 from .montecarlo import brute_force
 from .response import CountedResponse, Response
 from .results import Z95, TailEstimate, WeightedTail, json_number
 from .streams import derived_seed
+from .subset import SubsetRun, subset_layout, subset_simulation
 
 _ESTIMATORS: dict[str, Callable[..., TailEstimate]] = {
     "brute": brute_force,
