@@ -3,13 +3,13 @@
 A response with a discrete input is a mixture over that input's values: the braking distance with
 ``k`` of the train's disc units failed is one continuous response ``Y_k`` of the standard normals,
 and ``k`` has the probability ``pi_k`` (binomial for units failing independently). Conditioned on
-``k``, each component is an ordinary single-region problem for :mod:`.estimators`, where the whole
+``k``, each component is an ordinary single-region problem for the estimators, where the whole
 response, a union of separate exceedance regions (which units failed), is not: importance sampling
 with one Gaussian settles on one region. By the law of total probability the mixture's
 exceedance probability is ``P(d) = sum_k pi_k P_k(d)``; the components are estimated by
 independent runs, so the variance is ``sum_k pi_k**2 Var_k(d)`` (stratified sampling, e.g.
 Cochran 1977, *Sampling Techniques*, 3rd ed., Wiley, ch. 5). Each run's estimate is a
-:class:`~brakegym.reliability.estimators.WeightedTail`, a weighted sample that gives ``P_k`` and
+:class:`~brakegym.reliability.results.WeightedTail`, a weighted sample that gives ``P_k`` and
 ``Var_k`` at any ``d``.
 
 The components' tails differ by many orders of magnitude (with 16 units failing at ``q = 1e-3``
@@ -53,12 +53,12 @@ upper end of the intervals. How it finds which components matter:
    RuntimeError) leaves the pilot's estimate, with a note.
 3. *Estimate.* The estimated components' tails combine into one weighted sample. With a
    threshold, ``P(d)`` and its variance are the sums above. With a probability, the quantile is
-   read off the combined CCDF at ``p`` (mid-jump plotting positions, as in :mod:`.estimators`).
+   read off the combined CCDF at ``p`` (mid-jump plotting positions, as in :mod:`.results`).
    A component whose sample has fewer than 10 samples above the answer (or, for brute force,
    does not reach down to it) does not resolve it: it is moved to the bounded ones (status
    ``"unresolved"``) and the answer recomputed without it.
 
-Intervals as in :mod:`.estimators`, log-normal with ``s = sqrt(log(1 + delta**2))`` from the
+Intervals as in :mod:`.results`, log-normal with ``s = sqrt(log(1 + delta**2))`` from the
 combined coefficient of variation, with the bound ``B`` (the unmodelled weight ``1 - sum pi_k``,
 plus the skipped components' weights, plus ``pi_k U_k`` of the bounded ones at the answer) added
 to the upper end: probability ``(P exp(-1.96 s), P exp(1.96 s) + B)``, quantile from the
@@ -81,10 +81,7 @@ import numpy as np
 from scipy import stats
 
 from .checks import check_integer, check_target
-from .estimators import (
-    importance_sampling,
-    importance_settings,
-)
+from .importance import importance_sampling, importance_settings
 from .montecarlo import brute_force
 from .response import CountedResponse, Response
 from .results import Z95, TailEstimate, WeightedTail, json_number
@@ -148,9 +145,9 @@ def mixture_tail(
         The seed; component ``k``'s pilot runs on ``derived_seed(seed, 4, k)``, its final run on
         ``derived_seed(seed, 5, k)``.
     method
-        The estimator of the final runs: ``"brute"`` (:func:`~.estimators.brute_force`, needs
-        ``n_samples``), ``"subset"`` (:func:`~.estimators.subset_simulation`) or ``"is"``
-        (:func:`~.estimators.importance_sampling`).
+        The estimator of the final runs: ``"brute"`` (:func:`~.montecarlo.brute_force`, needs
+        ``n_samples``), ``"subset"`` (:func:`~.subset.subset_simulation`) or ``"is"``
+        (:func:`~.importance.importance_sampling`).
     probability, threshold
         Exactly one: the exceedance probability whose quantile to estimate, or the threshold whose
         exceedance probability to estimate.
@@ -166,14 +163,14 @@ def mixture_tail(
     Returns
     -------
     TailEstimate
-        :attr:`~.estimators.TailEstimate.method` is ``method``; ``model_evaluations`` counts the
+        :attr:`~.results.TailEstimate.method` is ``method``; ``model_evaluations`` counts the
         pilot's and the final runs' rows of all components; ``levels`` is empty;
         ``diagnostics`` has per component (``"components"``) its weight, status (``"estimated"``
         by a final run, ``"pilot"``: estimated by the pilot, ``"bounded"``, ``"unreached"``,
         ``"skipped"``, ``"unresolved"``), conditional probability, contribution, bound,
         coefficient of variation, samples above the answer and evaluations, and
         ``"unmodelled_weight"``, ``"bound"`` (the upper ends' addition) and the pilot's figures;
-        ``tail`` is the estimated components' combined :class:`~.estimators.WeightedTail`.
+        ``tail`` is the estimated components' combined :class:`~.results.WeightedTail`.
 
     Raises
     ------

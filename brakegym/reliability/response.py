@@ -16,7 +16,7 @@ import numpy as np
 from .checks import check_integer
 
 Response = Callable[[np.ndarray], np.ndarray]
-"""A response ``response(u) -> y``: ``(n, dims)`` standard normals to ``(n,)`` values (see the module's notes)."""
+"""The type of a response ``response(u) -> y``, from ``(n, dims)`` standard normals to ``(n,)`` values."""
 
 
 class CountedResponse:

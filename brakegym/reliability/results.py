@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 Z95 = 1.959963984540054
-"""The two-sided 95 % factor: the standard normal's 0.975 quantile."""
+"""The standard normal's 0.975 quantile, the factor of two-sided 95 % intervals."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,30 +1,9 @@
-"""Tail estimators for any vectorised response of standard-normal inputs.
+"""Importance sampling: :func:`importance_sampling`, the multilevel cross-entropy method (Rubinstein
+& Kroese 2004, *The Cross-Entropy Method*, Springer) with a Gaussian importance density of unit
+covariance whose mean is adapted, then a final importance-sampling run. Probability interval from
+the standard error of the weighted sample.
 
-A *response* is a function ``response(u) -> y`` of standard normals, larger being worse (see
-:mod:`.response`). Each estimator takes either
-
-- ``probability=p``: the quantile ``y_p`` with ``P(response > y_p) = p``, and its 95 % interval;
-- ``threshold=b``: the exceedance probability ``P(response > b)``, and its 95 % interval;
-
-and returns a :class:`~.results.TailEstimate`. The response is called with at most ``batch_size`` rows
-at a time, and every row is counted in :attr:`~.results.TailEstimate.model_evaluations`.
-
-The methods:
-
-- :func:`~.montecarlo.brute_force`: plain Monte Carlo (:mod:`.montecarlo`).
-- :func:`~.subset.subset_simulation`: subset simulation (:mod:`.subset`).
-- :func:`importance_sampling`: the multilevel cross-entropy method (Rubinstein & Kroese 2004,
-  *The Cross-Entropy Method*, Springer) with a Gaussian importance density of unit covariance whose
-  mean is adapted, then a final importance-sampling run. Probability interval from the standard
-  error of the weighted sample.
-
-The estimates, their intervals and the empirical CCDF they are read off: :mod:`.results`.
-
-Determinism. All randomness comes from :mod:`brakegym.reliability.streams`: the seed's own stream
-for Monte Carlo and subset simulation's level 0, streams derived from the seed
-(:func:`~brakegym.reliability.streams.derived_seed`) for the Markov-chain proposals and the
-importance-sampling runs. The same seed gives the same estimate bit for bit whatever
-``batch_size`` is (for a response that treats rows independently).
+The cross-entropy levels and the final run draw their samples from streams derived from the seed.
 """
 
 from __future__ import annotations
@@ -40,6 +19,9 @@ from .response import CountedResponse, Response
 from .results import TailEstimate, WeightedTail, ccdf_quantiles, lognormal_interval
 from .streams import derived_seed, standard_normals
 
+# Stream numbers under the user's seed: derived_seed(seed, _CROSS_ENTROPY_STREAM, level) for the
+# cross-entropy levels, derived_seed(seed, _FINAL_STREAM) for the final run; subset simulation uses
+# the stream 1, mixture_tail 4 and 5.
 _CROSS_ENTROPY_STREAM = 2
 _FINAL_STREAM = 3
 
