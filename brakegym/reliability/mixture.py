@@ -314,7 +314,7 @@ def _final_runs(
     for part in resolved:
         part.status = "pilot"
         part.pilot_variance = part.weight**2 * float(part.pilot.variance(threshold))
-        part.cost = 1.0 + (1.0 - _PILOT_LEVEL_PROBABILITY) * part.pilot._level_index(threshold)
+        part.cost = 1.0 + (1.0 - _PILOT_LEVEL_PROBABILITY) * part.pilot.level_index(threshold)
     # Neyman's allocation index: the evaluations a stratum deserves go as pi_k sigma_k / sqrt(cost per sample).
     resolved.sort(key=lambda part: -math.sqrt(part.pilot_variance / part.cost))
     reference = None
@@ -479,7 +479,7 @@ def _upper_bound(tail: WeightedTail, d: float) -> float:
     """A 95 % upper bound on ``P(Y > d)`` from a subset-simulation sample, also where it does not
     resolve ``d``: ``p0**j`` times the Clopper-Pearson upper end of level ``j``'s fraction above
     ``d``, times ``exp(1.96 s)`` for the completed levels' uncertainty."""
-    level, n = tail._level_index(d), tail.sample_size
+    level, n = tail.level_index(d), tail.sample_size
     above = int(tail.exceedance_count(d))
     fraction = 1.0 if above >= n else float(stats.beta.ppf(0.975, above + 1, n - above))
     spread = Z95 * math.sqrt(math.log1p(math.fsum(tail.level_terms[:level])))

@@ -200,7 +200,7 @@ class WeightedTail:
         result = np.where(np.isnan(probabilities), np.nan, result)
         return _like(result, points)
 
-    def _level_index(self, value: float) -> int:
+    def level_index(self, value: float) -> int:
         """Subset simulation: the level whose samples give the CCDF at ``value``, the number of
         intermediate thresholds at or below it. At a threshold ``b_{j+1}`` itself this is level
         ``j + 1``, all of whose samples exceed it, except where the chains' repeated states tie
@@ -210,13 +210,13 @@ class WeightedTail:
 
     def _level(self, value: float) -> np.ndarray:
         """Subset simulation: the responses of the level that holds ``value``, as (steps, chains)."""
-        level, n = self._level_index(value), self.sample_size
+        level, n = self.level_index(value), self.sample_size
         block = self.responses[level * n : (level + 1) * n]
         return block[None, :] if level == 0 else block.reshape(n // self.chains, self.chains)
 
     def _squared_cov(self, value: float) -> float:
         """Subset simulation: Au & Beck's squared coefficient of variation at ``value``."""
-        level = self._level_index(value)
+        level = self.level_index(value)
         exceeds = self._level(value) > value
         share = float(np.mean(exceeds))
         if share == 0.0:
