@@ -89,29 +89,9 @@ def importance_sampling(
     check_target(probability, threshold)
     n_per_level, n_final, max_levels = importance_settings(n_per_level, n_final, level_probability, max_levels)
     evaluate = CountedResponse(response, dims, batch_size)
-    mean, thresholds, mean_norms = np.zeros(evaluate.dims), [], [0.0]
-    for level in range(max_levels):
-        stream = derived_seed(seed, _CROSS_ENTROPY_STREAM, level)
-        responses, log_weights = _shifted_run(evaluate, mean, stream, n_per_level)
-        intermediate, reached = _cross_entropy_threshold(
-            responses, log_weights, probability, threshold, level_probability
-        )
-        if not reached and thresholds and intermediate <= thresholds[-1]:
-            raise RuntimeError(
-                f"cross entropy stalled at level {level}: intermediate threshold {intermediate:.6g} <= "
-                f"{thresholds[-1]:.6g}; one Gaussian importance density cannot follow this response "
-                f"(several failure regions?)"
-            )
-        mean = _cross_entropy_mean(mean, stream, responses, log_weights, intermediate)
-        mean_norms.append(float(np.linalg.norm(mean)))
-        if reached:
-            break
-        thresholds.append(intermediate)
-    else:
-        raise RuntimeError(
-            f"cross entropy did not reach the target in max_levels = {max_levels} levels "
-            f"(last intermediate threshold {thresholds[-1]:.6g})"
-        )
+    mean, thresholds, mean_norms = _cross_entropy_levels(
+        evaluate, seed, probability, threshold, n_per_level, level_probability, max_levels
+    )
     responses, log_weights = _shifted_run(evaluate, mean, derived_seed(seed, _FINAL_STREAM), n_final)
     weights = np.exp(log_weights)
     estimate = _importance_estimate(responses, weights, probability, threshold)
@@ -139,6 +119,41 @@ def importance_settings(
             f"the intermediate thresholds: need n_per_level * level_probability >= 1"
         )
     return n_per_level, n_final, check_integer("max_levels", max_levels, 1)
+
+
+def _cross_entropy_levels(
+    evaluate: CountedResponse,
+    seed: int,
+    probability: float | None,
+    threshold: float | None,
+    n_per_level: int,
+    level_probability: float,
+    max_levels: int,
+) -> tuple[np.ndarray, list[float], list[float]]:
+    """The cross-entropy levels, until one reaches the target: the importance density's mean, the
+    intermediate thresholds below the target, and the mean's norm after each level (0 first)."""
+    mean, thresholds, mean_norms = np.zeros(evaluate.dims), [], [0.0]
+    for level in range(max_levels):
+        stream = derived_seed(seed, _CROSS_ENTROPY_STREAM, level)
+        responses, log_weights = _shifted_run(evaluate, mean, stream, n_per_level)
+        intermediate, reached = _cross_entropy_threshold(
+            responses, log_weights, probability, threshold, level_probability
+        )
+        if not reached and thresholds and intermediate <= thresholds[-1]:
+            raise RuntimeError(
+                f"cross entropy stalled at level {level}: intermediate threshold {intermediate:.6g} <= "
+                f"{thresholds[-1]:.6g}; one Gaussian importance density cannot follow this response "
+                f"(several failure regions?)"
+            )
+        mean = _cross_entropy_mean(mean, stream, responses, log_weights, intermediate)
+        mean_norms.append(float(np.linalg.norm(mean)))
+        if reached:
+            return mean, thresholds, mean_norms
+        thresholds.append(intermediate)
+    raise RuntimeError(
+        f"cross entropy did not reach the target in max_levels = {max_levels} levels "
+        f"(last intermediate threshold {thresholds[-1]:.6g})"
+    )
 
 
 def _shifted_run(evaluate: CountedResponse, mean: np.ndarray, stream: int, n: int) -> tuple[np.ndarray, np.ndarray]:
