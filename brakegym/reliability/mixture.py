@@ -369,43 +369,15 @@ def _estimate(
     start: float,
 ) -> TailEstimate:
     """The combined estimate at the answer, after dropping the components that do not resolve it."""
-    while True:
-        estimated = [part for part in parts if part.status in ("estimated", "pilot")]
-        if not estimated:
-            raise RuntimeError(
-                f"no component resolves the {'threshold' if probability is None else 'quantile'}: "
-                + "; ".join(f"component {part.index} {part.status}" for part in parts)
-            )
-        tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
-        answer = threshold if probability is None else float(_quantiles(tails, weights, [probability])[0])
-        if not math.isfinite(answer):
-            raise RuntimeError(f"the components' samples do not reach probability = {probability}")
-        dropped = [
-            part
-            for part in estimated
-            if answer < part.tail.resolved_from or part.tail.exceedance_count(answer) < _MIN_EXCEEDANCES
-        ]
-        if not dropped:
-            break
-        for part in dropped:
-            reason = f"fewer than {_MIN_EXCEEDANCES} samples above {answer:.6g}"
-            part.note = f"{part.note}; {reason}" if part.note else reason
-            part.status = "unresolved"
+    estimated, answer = _resolved_answer(parts, probability, threshold)
+    tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
     bounds = {part.index: part.bound(answer) for part in parts if part.status not in ("estimated", "pilot")}
     bound = unmodelled + math.fsum(bounds.values())
     exceedance = math.fsum(w * tail.exceedance(answer) for tail, w in zip(tails, weights))
     variance = math.fsum(w**2 * tail.variance(answer) for tail, w in zip(tails, weights))
     cov = math.sqrt(variance) / exceedance
-    spread = Z95 * math.sqrt(math.log1p(cov**2))
     centre = exceedance if probability is None else probability
-    probability_ci95 = (centre * math.exp(-spread), centre * math.exp(spread) + bound)
-    if probability is None:
-        threshold_ci95 = (float(threshold), float(threshold))
-    else:
-        upper_target = probability * math.exp(-spread) - bound
-        low = float(_quantiles(tails, weights, [probability * math.exp(spread)])[0])
-        high = float(_quantiles(tails, weights, [upper_target])[0]) if upper_target > 0.0 else math.inf
-        threshold_ci95 = (low, high)
+    probability_ci95, threshold_ci95 = _intervals(tails, weights, centre, probability, threshold, cov, bound)
     pilot_evaluations = sum(part.counted.evaluations for part in parts)
     final_evaluations = sum(part.final_evaluations for part in parts)
     low, centre_pilot, high = pilot.located
@@ -430,6 +402,58 @@ def _estimate(
         },
         tail=WeightedTail.mixture(tuple(tails), tuple(weights)),
     )
+
+
+def _resolved_answer(
+    parts: list[_Part], probability: float | None, threshold: float | None
+) -> tuple[list[_Part], float]:
+    """The estimated components that resolve the answer, and the answer: the threshold, or the
+    quantile of their combined CCDF at ``probability``. A component with fewer than 10 samples
+    above the answer (or whose sample does not reach down to it) becomes ``"unresolved"``, and the
+    answer is read again without it."""
+    while True:
+        estimated = [part for part in parts if part.status in ("estimated", "pilot")]
+        if not estimated:
+            raise RuntimeError(
+                f"no component resolves the {'threshold' if probability is None else 'quantile'}: "
+                + "; ".join(f"component {part.index} {part.status}" for part in parts)
+            )
+        tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
+        answer = threshold if probability is None else float(_quantiles(tails, weights, [probability])[0])
+        if not math.isfinite(answer):
+            raise RuntimeError(f"the components' samples do not reach probability = {probability}")
+        dropped = [
+            part
+            for part in estimated
+            if answer < part.tail.resolved_from or part.tail.exceedance_count(answer) < _MIN_EXCEEDANCES
+        ]
+        if not dropped:
+            return estimated, answer
+        for part in dropped:
+            reason = f"fewer than {_MIN_EXCEEDANCES} samples above {answer:.6g}"
+            part.note = f"{part.note}; {reason}" if part.note else reason
+            part.status = "unresolved"
+
+
+def _intervals(
+    tails: list[WeightedTail],
+    weights: list[float],
+    centre: float,
+    probability: float | None,
+    threshold: float | None,
+    cov: float,
+    bound: float,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The 95 % intervals of the probability and of the threshold: log-normal from the combined
+    coefficient of variation ``cov``, the bound added to the upper ends (see the module's notes)."""
+    spread = Z95 * math.sqrt(math.log1p(cov**2))
+    probability_ci95 = (centre * math.exp(-spread), centre * math.exp(spread) + bound)
+    if probability is None:
+        return probability_ci95, (float(threshold), float(threshold))
+    upper_target = probability * math.exp(-spread) - bound
+    low = float(_quantiles(tails, weights, [probability * math.exp(spread)])[0])
+    high = float(_quantiles(tails, weights, [upper_target])[0]) if upper_target > 0.0 else math.inf
+    return probability_ci95, (low, high)
 
 
 def _describe(part: _Part, answer: float, bound: float | None) -> dict[str, Any]:
