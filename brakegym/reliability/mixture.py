@@ -3,13 +3,13 @@
 A response with a discrete input is a mixture over that input's values: the braking distance with
 ``k`` of the train's disc units failed is one continuous response ``Y_k`` of the standard normals,
 and ``k`` has the probability ``pi_k`` (binomial for units failing independently). Conditioned on
-``k``, each component is an ordinary single-region problem for :mod:`.estimators`, where the whole
+``k``, each component is an ordinary single-region problem for the estimators, where the whole
 response, a union of separate exceedance regions (which units failed), is not: importance sampling
 with one Gaussian settles on one region. By the law of total probability the mixture's
 exceedance probability is ``P(d) = sum_k pi_k P_k(d)``; the components are estimated by
 independent runs, so the variance is ``sum_k pi_k**2 Var_k(d)`` (stratified sampling, e.g.
 Cochran 1977, *Sampling Techniques*, 3rd ed., Wiley, ch. 5). Each run's estimate is a
-:class:`~brakegym.reliability.estimators.WeightedTail`, a weighted sample that gives ``P_k`` and
+:class:`~brakegym.reliability.results.WeightedTail`, a weighted sample that gives ``P_k`` and
 ``Var_k`` at any ``d``.
 
 The components' tails differ by many orders of magnitude (with 16 units failing at ``q = 1e-3``
@@ -53,12 +53,12 @@ upper end of the intervals. How it finds which components matter:
    RuntimeError) leaves the pilot's estimate, with a note.
 3. *Estimate.* The estimated components' tails combine into one weighted sample. With a
    threshold, ``P(d)`` and its variance are the sums above. With a probability, the quantile is
-   read off the combined CCDF at ``p`` (mid-jump plotting positions, as in :mod:`.estimators`).
+   read off the combined CCDF at ``p`` (mid-jump plotting positions, as in :mod:`.results`).
    A component whose sample has fewer than 10 samples above the answer (or, for brute force,
    does not reach down to it) does not resolve it: it is moved to the bounded ones (status
    ``"unresolved"``) and the answer recomputed without it.
 
-Intervals as in :mod:`.estimators`, log-normal with ``s = sqrt(log(1 + delta**2))`` from the
+Intervals as in :mod:`.results`, log-normal with ``s = sqrt(log(1 + delta**2))`` from the
 combined coefficient of variation, with the bound ``B`` (the unmodelled weight ``1 - sum pi_k``,
 plus the skipped components' weights, plus ``pi_k U_k`` of the bounded ones at the answer) added
 to the upper end: probability ``(P exp(-1.96 s), P exp(1.96 s) + B)``, quantile from the
@@ -80,23 +80,13 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .estimators import (
-    _Z95,
-    Response,
-    TailEstimate,
-    WeightedTail,
-    _check_integer,
-    _check_target,
-    _CountedResponse,
-    _importance_settings,
-    _json_number,
-    _subset_layout,
-    _SubsetRun,
-    brute_force,
-    importance_sampling,
-    subset_simulation,
-)
+from .checks import check_integer, check_target
+from .importance import importance_sampling, importance_settings
+from .montecarlo import brute_force
+from .response import CountedResponse, Response
+from .results import Z95, TailEstimate, WeightedTail, json_number
 from .streams import derived_seed
+from .subset import SubsetRun, subset_layout, subset_simulation
 
 _ESTIMATORS: dict[str, Callable[..., TailEstimate]] = {
     "brute": brute_force,
@@ -155,9 +145,9 @@ def mixture_tail(
         The seed; component ``k``'s pilot runs on ``derived_seed(seed, 4, k)``, its final run on
         ``derived_seed(seed, 5, k)``.
     method
-        The estimator of the final runs: ``"brute"`` (:func:`~.estimators.brute_force`, needs
-        ``n_samples``), ``"subset"`` (:func:`~.estimators.subset_simulation`) or ``"is"``
-        (:func:`~.estimators.importance_sampling`).
+        The estimator of the final runs: ``"brute"`` (:func:`~.montecarlo.brute_force`, needs
+        ``n_samples``), ``"subset"`` (:func:`~.subset.subset_simulation`) or ``"is"``
+        (:func:`~.importance.importance_sampling`).
     probability, threshold
         Exactly one: the exceedance probability whose quantile to estimate, or the threshold whose
         exceedance probability to estimate.
@@ -173,14 +163,14 @@ def mixture_tail(
     Returns
     -------
     TailEstimate
-        :attr:`~.estimators.TailEstimate.method` is ``method``; ``model_evaluations`` counts the
+        :attr:`~.results.TailEstimate.method` is ``method``; ``model_evaluations`` counts the
         pilot's and the final runs' rows of all components; ``levels`` is empty;
         ``diagnostics`` has per component (``"components"``) its weight, status (``"estimated"``
         by a final run, ``"pilot"``: estimated by the pilot, ``"bounded"``, ``"unreached"``,
         ``"skipped"``, ``"unresolved"``), conditional probability, contribution, bound,
         coefficient of variation, samples above the answer and evaluations, and
         ``"unmodelled_weight"``, ``"bound"`` (the upper ends' addition) and the pilot's figures;
-        ``tail`` is the estimated components' combined :class:`~.estimators.WeightedTail`.
+        ``tail`` is the estimated components' combined :class:`~.results.WeightedTail`.
 
     Raises
     ------
@@ -188,7 +178,7 @@ def mixture_tail(
         When no component resolves the answer (every one bounded, unreached or unresolved).
     """
     start = time.perf_counter()
-    _check_target(probability, threshold)
+    check_target(probability, threshold)
     options = _check_settings(method, settings)
     if not (isinstance(negligible, numbers.Real) and 0.0 < negligible < 1.0):
         raise ValueError(f"negligible = {negligible!r}: need a number in the open interval (0, 1)")
@@ -216,8 +206,8 @@ class _Part:
 
     def __init__(self, index: int, weight: float, response: Response, dims: int, batch_size: int) -> None:
         self.index, self.weight, self.response = index, weight, response
-        self.counted = _CountedResponse(response, dims, batch_size)
-        self.run: _SubsetRun | None = None
+        self.counted = CountedResponse(response, dims, batch_size)
+        self.run: SubsetRun | None = None
         self.pilot: WeightedTail | None = None
         self.final: TailEstimate | None = None
         self.final_evaluations, self.attempted = 0, False
@@ -286,7 +276,7 @@ class _Pilot:
             chosen = max(needs, key=lambda part: part.bound(centre))
             if chosen.run is None:
                 stream = derived_seed(self.seed, _PILOT_STREAM, chosen.index)
-                chosen.run = _SubsetRun(chosen.counted, stream, self.n_per_level, _PILOT_LEVEL_PROBABILITY)
+                chosen.run = SubsetRun(chosen.counted, stream, self.n_per_level, _PILOT_LEVEL_PROBABILITY)
             else:
                 chosen.run.advance()
             chosen.pilot = chosen.run.tail()
@@ -304,7 +294,7 @@ class _Pilot:
         centre = float(_quantiles(tails, weights, [self.probability])[0])
         if not math.isfinite(centre):
             return (centre,) * 3
-        spread = _Z95 * _log_spread(tails, weights, centre)
+        spread = Z95 * _log_spread(tails, weights, centre)
         ends = [self.probability * math.exp(spread), self.probability * math.exp(-spread)]
         low, high = _quantiles(tails, weights, ends)
         return float(low), centre, float(high)
@@ -324,7 +314,7 @@ def _final_runs(
     for part in resolved:
         part.status = "pilot"
         part.pilot_variance = part.weight**2 * float(part.pilot.variance(threshold))
-        part.cost = 1.0 + (1.0 - _PILOT_LEVEL_PROBABILITY) * part.pilot._level_index(threshold)
+        part.cost = 1.0 + (1.0 - _PILOT_LEVEL_PROBABILITY) * part.pilot.level_index(threshold)
     # Neyman's allocation index: the evaluations a stratum deserves go as pi_k sigma_k / sqrt(cost per sample).
     resolved.sort(key=lambda part: -math.sqrt(part.pilot_variance / part.cost))
     reference = None
@@ -379,43 +369,15 @@ def _estimate(
     start: float,
 ) -> TailEstimate:
     """The combined estimate at the answer, after dropping the components that do not resolve it."""
-    while True:
-        estimated = [part for part in parts if part.status in ("estimated", "pilot")]
-        if not estimated:
-            raise RuntimeError(
-                f"no component resolves the {'threshold' if probability is None else 'quantile'}: "
-                + "; ".join(f"component {part.index} {part.status}" for part in parts)
-            )
-        tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
-        answer = threshold if probability is None else float(_quantiles(tails, weights, [probability])[0])
-        if not math.isfinite(answer):
-            raise RuntimeError(f"the components' samples do not reach probability = {probability}")
-        dropped = [
-            part
-            for part in estimated
-            if answer < part.tail.resolved_from or part.tail.exceedance_count(answer) < _MIN_EXCEEDANCES
-        ]
-        if not dropped:
-            break
-        for part in dropped:
-            reason = f"fewer than {_MIN_EXCEEDANCES} samples above {answer:.6g}"
-            part.note = f"{part.note}; {reason}" if part.note else reason
-            part.status = "unresolved"
+    estimated, answer = _resolved_answer(parts, probability, threshold)
+    tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
     bounds = {part.index: part.bound(answer) for part in parts if part.status not in ("estimated", "pilot")}
     bound = unmodelled + math.fsum(bounds.values())
     exceedance = math.fsum(w * tail.exceedance(answer) for tail, w in zip(tails, weights))
     variance = math.fsum(w**2 * tail.variance(answer) for tail, w in zip(tails, weights))
     cov = math.sqrt(variance) / exceedance
-    spread = _Z95 * math.sqrt(math.log1p(cov**2))
     centre = exceedance if probability is None else probability
-    probability_ci95 = (centre * math.exp(-spread), centre * math.exp(spread) + bound)
-    if probability is None:
-        threshold_ci95 = (float(threshold), float(threshold))
-    else:
-        upper_target = probability * math.exp(-spread) - bound
-        low = float(_quantiles(tails, weights, [probability * math.exp(spread)])[0])
-        high = float(_quantiles(tails, weights, [upper_target])[0]) if upper_target > 0.0 else math.inf
-        threshold_ci95 = (low, high)
+    probability_ci95, threshold_ci95 = _intervals(tails, weights, centre, probability, threshold, cov, bound)
     pilot_evaluations = sum(part.counted.evaluations for part in parts)
     final_evaluations = sum(part.final_evaluations for part in parts)
     low, centre_pilot, high = pilot.located
@@ -434,12 +396,64 @@ def _estimate(
             "unmodelled_weight": unmodelled,
             "bound": bound,
             "negligible": negligible,
-            "pilot_threshold": _json_number(centre_pilot),
-            "pilot_interval": [_json_number(low), _json_number(high)],
+            "pilot_threshold": json_number(centre_pilot),
+            "pilot_interval": [json_number(low), json_number(high)],
             "pilot_evaluations": pilot_evaluations,
         },
         tail=WeightedTail.mixture(tuple(tails), tuple(weights)),
     )
+
+
+def _resolved_answer(
+    parts: list[_Part], probability: float | None, threshold: float | None
+) -> tuple[list[_Part], float]:
+    """The estimated components that resolve the answer, and the answer: the threshold, or the
+    quantile of their combined CCDF at ``probability``. A component with fewer than 10 samples
+    above the answer (or whose sample does not reach down to it) becomes ``"unresolved"``, and the
+    answer is read again without it."""
+    while True:
+        estimated = [part for part in parts if part.status in ("estimated", "pilot")]
+        if not estimated:
+            raise RuntimeError(
+                f"no component resolves the {'threshold' if probability is None else 'quantile'}: "
+                + "; ".join(f"component {part.index} {part.status}" for part in parts)
+            )
+        tails, weights = [part.tail for part in estimated], [part.weight for part in estimated]
+        answer = threshold if probability is None else float(_quantiles(tails, weights, [probability])[0])
+        if not math.isfinite(answer):
+            raise RuntimeError(f"the components' samples do not reach probability = {probability}")
+        dropped = [
+            part
+            for part in estimated
+            if answer < part.tail.resolved_from or part.tail.exceedance_count(answer) < _MIN_EXCEEDANCES
+        ]
+        if not dropped:
+            return estimated, answer
+        for part in dropped:
+            reason = f"fewer than {_MIN_EXCEEDANCES} samples above {answer:.6g}"
+            part.note = f"{part.note}; {reason}" if part.note else reason
+            part.status = "unresolved"
+
+
+def _intervals(
+    tails: list[WeightedTail],
+    weights: list[float],
+    centre: float,
+    probability: float | None,
+    threshold: float | None,
+    cov: float,
+    bound: float,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The 95 % intervals of the probability and of the threshold: log-normal from the combined
+    coefficient of variation ``cov``, the bound added to the upper ends (see the module's notes)."""
+    spread = Z95 * math.sqrt(math.log1p(cov**2))
+    probability_ci95 = (centre * math.exp(-spread), centre * math.exp(spread) + bound)
+    if probability is None:
+        return probability_ci95, (float(threshold), float(threshold))
+    upper_target = probability * math.exp(-spread) - bound
+    low = float(_quantiles(tails, weights, [probability * math.exp(spread)])[0])
+    high = float(_quantiles(tails, weights, [upper_target])[0]) if upper_target > 0.0 else math.inf
+    return probability_ci95, (low, high)
 
 
 def _describe(part: _Part, answer: float, bound: float | None) -> dict[str, Any]:
@@ -457,7 +471,7 @@ def _describe(part: _Part, answer: float, bound: float | None) -> dict[str, Any]
         line.update(
             probability=conditional,
             contribution=part.weight * conditional,
-            coefficient_of_variation=_json_number(float(tail.coefficient_of_variation(answer))),
+            coefficient_of_variation=json_number(float(tail.coefficient_of_variation(answer))),
             exceedances=int(tail.exceedance_count(answer)),
             levels=[] if part.final is None else list(part.final.levels),
         )
@@ -489,10 +503,10 @@ def _upper_bound(tail: WeightedTail, d: float) -> float:
     """A 95 % upper bound on ``P(Y > d)`` from a subset-simulation sample, also where it does not
     resolve ``d``: ``p0**j`` times the Clopper-Pearson upper end of level ``j``'s fraction above
     ``d``, times ``exp(1.96 s)`` for the completed levels' uncertainty."""
-    level, n = tail._level_index(d), tail.sample_size
+    level, n = tail.level_index(d), tail.sample_size
     above = int(tail.exceedance_count(d))
     fraction = 1.0 if above >= n else float(stats.beta.ppf(0.975, above + 1, n - above))
-    spread = _Z95 * math.sqrt(math.log1p(math.fsum(tail.level_terms[:level])))
+    spread = Z95 * math.sqrt(math.log1p(math.fsum(tail.level_terms[:level])))
     return min(1.0, tail.level_probability**level * fraction * math.exp(spread))
 
 
@@ -540,14 +554,14 @@ def _check_settings(method: str, settings: dict[str, Any]) -> dict[str, Any]:
     if method == "brute":
         if "n_samples" not in settings:
             raise ValueError("method 'brute' needs n_samples in the settings")
-        _check_integer("n_samples", options["n_samples"], 1)
+        check_integer("n_samples", options["n_samples"], 1)
     elif method == "subset":
-        _subset_layout(options["n_per_level"], options["level_probability"])
-        _check_integer("max_levels", options["max_levels"], 1)
+        subset_layout(options["n_per_level"], options["level_probability"])
+        check_integer("max_levels", options["max_levels"], 1)
     else:
         levels = options["level_probability"], options["max_levels"]
-        _importance_settings(options["n_per_level"], options["n_final"], *levels)
-    _check_integer("batch_size", options["batch_size"], 1)
+        importance_settings(options["n_per_level"], options["n_final"], *levels)
+    check_integer("batch_size", options["batch_size"], 1)
     return options
 
 
