@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -85,6 +86,12 @@ class _TrajectoryRecorder:
         return Trajectory(**{name: np.stack(values) for name, values in self.rows.items()})
 
 
+class StepObserver(Protocol):
+    """Something that follows a run step by step: ``update(sim)`` after each step."""
+
+    def update(self, sim: Simulator) -> None: ...
+
+
 @dataclass
 class StopSummary:
     """Per-application results of a batch of stops. Arrays have the batch as first axis.
@@ -131,9 +138,11 @@ def run_stops(
     until_time_s: float | None = None,
     max_time_s: float = MAX_STOP_TIME_S,
     progress: Callable[[int], None] | None = None,
+    observers: Sequence[StepObserver] = (),
 ) -> StopSummary:
     """Step ``sim`` until every train stands still (or until ``until_time_s``), calling
-    ``command(sim)`` before each step to set the brake commands.
+    ``command(sim)`` before each step to set the brake commands and ``observer.update(sim)``
+    after it for each of ``observers`` (e.g. :class:`~brakegym.simulator.metrics.SpeedCrossings`).
 
     Run to standstill, each train is held from its own standstill on (``sim.hold_standing_trains``
     for the run): its summary (peak temperatures, heat stored and given to the air) ends at its
@@ -162,6 +171,8 @@ def run_stops(
             command(sim)
             sim.step()
             metrics.update(sim)
+            for observer in observers:
+                observer.update(sim)
             if recorder:
                 recorder.after_step(sim)
             if progress is not None:
@@ -240,6 +251,7 @@ def run_commanded_stops(
     friction_modifiers: Sequence[FrictionModifier] = (),
     progress: Callable[[int], None] | None = None,
     max_time_s: float = MAX_STOP_TIME_S,
+    observers: Sequence[StepObserver] = (),
 ) -> StopSummary:
     """Run a batch of stops, each with a constant command (B, A) switched on at its own time."""
     pressure = CommandedPressure(cylinders, plant.n_axles, step_s)
@@ -255,6 +267,7 @@ def run_commanded_stops(
         until_time_s=until_time_s,
         max_time_s=max_time_s,
         progress=progress,
+        observers=observers,
     )
 
 

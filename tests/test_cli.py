@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -168,3 +169,31 @@ def test_tail_json(tmp_path, capsys):
     # The 1e-3 distance lies beyond the nominal stop; the table says both.
     assert data["braking_distance_m"] > data["nominal_braking_distance_m"]
     assert "exceeded with probability 0.001" in capsys.readouterr().out
+
+
+def test_kdry_json_figure_and_osrd_export(tmp_path, capsys):
+    """``brakegym kdry`` on a user's safety case (a copy of the shipped one with a lower maximum
+    speed, for a short test)."""
+    import yaml
+
+    from brakegym.safety.osrd import read_etcs_brake_params
+
+    cases = tmp_path / "configs" / "safety_cases"
+    cases.mkdir(parents=True)
+    shipped = yaml.safe_load(open(Path(__file__).resolve().parent.parent / "configs/safety_cases/emu_8axle.yaml"))
+    shipped.update(name="emu_slow")
+    shipped["etcs"].update(maximum_speed_kmh=60.0, speed_band_edges_kmh=[30.0], export_confidence_level=1)
+    (cases / "emu_slow.yaml").write_text(yaml.safe_dump(shipped))
+    out = tmp_path / "out"
+    args = ["--config-path", str(tmp_path / "configs"), "kdry", "--load", "empty", "--safety-case", "emu_slow"]
+    args += ["--levels", "0,1", "--n-per-level", "500", "--json", str(out / "k.json"), "--osrd", str(out / "o.json")]
+    assert main([*args, "--figure", str(out / "k.png")]) == 0
+    data = json.loads((out / "k.json").read_text())
+    assert [band["speed_high_kmh"] for band in data["bands"]] == [30.0, 60.0]
+    assert set(data["bands"][0]["kdry"]) == {"0", "1"} and data["bands"][0]["kdry"]["1"]["ebcl"] == 0.9
+    assert read_etcs_brake_params(out / "o.json")["k_dry"]["values"] == [b["kdry"]["1"]["value"] for b in data["bands"]]
+    assert (out / "k.png").stat().st_size > 0
+    assert "M_NVEBCL 1 (90 %)" in capsys.readouterr().out
+    # An export at a level not computed is refused before any simulation.
+    assert main([*args[:-4], "--levels", "0", "--osrd", str(out / "x.json")]) == 2
+    assert "include it in --levels" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 input moves the distance the way physics says, and a stop with every brake failed runs out as
 running resistance alone allows."""
 
+import json
 import math
 
 import numpy as np
@@ -13,7 +14,17 @@ from brakegym.applications import TrainApplication, train_stops
 from brakegym.physics import BrakeCylinder, CaliperLaw
 from brakegym.safety import BrakingModel, InputLayout
 from brakegym.safety.conventional import conventional_stop, equivalent_response_time_s, time_to_force_share_s
+from brakegym.safety.etcs import confidence, kdry_table, nominal_band_decelerations, speed_band_edges_kmh
+from brakegym.safety.osrd import (
+    CURVES,
+    TIMES,
+    OsrdFormatError,
+    export_kdry_table,
+    read_etcs_brake_params,
+    write_etcs_brake_params,
+)
 from brakegym.safety.tail import braking_distance_tail
+from brakegym.simulator.metrics import SpeedCrossings
 
 CASE = "emu_8axle"
 
@@ -306,3 +317,123 @@ def test_tail_input_errors():
         braking_distance_tail(case, "empty", 60.0, probability=1e-3, method="mc")
     with pytest.raises(ValueError, match="about 1.0e\\+11 stops"):
         braking_distance_tail(case, "empty", 60.0, probability=1e-9, method="brute")
+
+
+# ------------------------------------------------------------------------------------------------
+# Speed bands and Kdry (brakegym.safety.etcs)
+
+
+def test_band_decelerations_cover_the_braking_distance(model):
+    """Invariant: the bands' distances, (V_high^2 - V_low^2) / (2 a), plus the distance to the
+    build-up time, add up to the braking distance."""
+    u = np.random.default_rng(4).standard_normal((3, model.dims))
+    edges, build_up = (0.0, 40.0, 80.0, 120.0, 160.0), 1.5
+    decelerations = model.band_decelerations_mps2(u, edges, build_up)
+    crossing = SpeedCrossings(3, np.array([]), build_up)
+    distance = model.stops(u, observers=[crossing]).braking_distance_m
+    speeds = np.array(edges) / 3.6
+    top = np.vstack([speeds[1:-1, None].repeat(3, axis=1), crossing.speed_at_time_mps[None]])
+    bands = (top**2 - speeds[:-1, None] ** 2) / (2 * decelerations.T)
+    np.testing.assert_allclose(crossing.position_at_time_m + bands.sum(axis=0), distance, rtol=1e-12)
+
+
+def test_band_decelerations_of_a_train_without_brakes_are_its_running_resistance():
+    """Analytic: with every unit failed, m dv/dt = -F_R(v), so a band's distance is the integral
+    of m v / F_R(v) over its speeds (the top band from the speed at the build-up time)."""
+    model = BrakingModel(_case(brake_units={"failure_probability_per_demand": 1.0}), "empty", 100.0)
+    resistance, mass = model.vehicle.running_resistance, model.vehicle.mass_kg("empty")
+    edges, build_up = (0.0, 30.0, 60.0, 100.0), 1.5
+    u = np.zeros((1, model.dims))
+    crossing = SpeedCrossings(1, np.array([]), build_up)
+    model.stops(u, observers=[crossing])
+    decelerations = model.band_decelerations_mps2(u, edges, build_up)[0]
+    highs = [30.0 / 3.6, 60.0 / 3.6, crossing.speed_at_time_mps[0]]
+    for band, (low, high) in enumerate(zip([0.0, 30.0 / 3.6, 60.0 / 3.6], highs)):
+        distance, _ = integrate.quad(
+            lambda v: mass * v / (resistance.A_N + resistance.B_N_per_mps * v + resistance.C_N_per_mps2 * v * v),
+            low,
+            high,
+        )
+        assert decelerations[band] == pytest.approx((high**2 - low**2) / (2 * distance), rel=1e-4)
+
+
+def test_band_edges_must_span_the_stop(model):
+    with pytest.raises(ValueError, match="need 0 first"):
+        model.band_decelerations_mps2(np.zeros((1, model.dims)), (0.0, 80.0, 150.0), 1.5)
+    with pytest.raises(ValueError, match="build-up time 30.0 s ends below"):
+        model.band_decelerations_mps2(np.zeros((1, model.dims)), (0.0, 150.0, 160.0), 30.0)
+
+
+def test_conventional_band_decelerations_are_the_step_decelerations(model):
+    """With bands on the speed steps' edges, a band of one step brakes at that step's
+    deceleration."""
+    stop = conventional_stop(model)
+    edges = stop.speed_edges_kmh[::-1]  # rising, 5 km/h apart
+    np.testing.assert_allclose(stop.band_decelerations_mps2(edges), stop.decelerations_mps2[::-1], rtol=1e-12)
+
+
+def _slow_train(case, maximum_speed_kmh=60.0, edges=(20.0, 40.0)):
+    """``case`` with its ETCS model at a lower maximum speed: shorter stops for tests."""
+    etcs = case.etcs.model_copy(update={"maximum_speed_kmh": maximum_speed_kmh, "speed_band_edges_kmh": list(edges)})
+    return case.model_copy(update={"etcs": etcs})
+
+
+def test_kdry_of_a_lognormal_mass_is_the_deceleration_of_the_quantile_mass():
+    """Exact: with only the mass scattering, every band's deceleration falls as the mass grows,
+    so Kdry at M_NVEBCL n is the deceleration of the train of mass m exp(sigma z_n) over the
+    nominal, z_n the standard normal's EBCL quantile."""
+    sigma = 0.03
+    case = _slow_train(_reduced(mass={"relative_sigma": sigma}))
+    table = kdry_table(case, "empty", method="is", seed=3, levels=(0, 4))
+    model = BrakingModel(case, "empty", 60.0)
+    nominal, build_up = nominal_band_decelerations(model)
+    np.testing.assert_allclose(table.nominal_deceleration_mps2, nominal, rtol=1e-12)
+    for column, level in enumerate((0, 4)):
+        u = np.zeros((1, model.dims))
+        u[0, model.layout.mass] = special.ndtri(confidence(level))
+        exact = model.band_decelerations_mps2(u, speed_band_edges_kmh(case), build_up)[0] / nominal
+        # Six 95 % intervals miss one of them a quarter of the time: each estimate is checked
+        # within three of its interval's half-widths (about six standard errors) instead.
+        half_width = 0.5 * (table.kdry_ci95[:, column, 1] - table.kdry_ci95[:, column, 0])
+        assert np.all(np.abs(table.kdry[:, column] - exact) <= 3 * half_width), (level, table.kdry[:, column], exact)
+        np.testing.assert_allclose(table.kdry[:, column], exact, rtol=2e-3)
+
+
+def test_kdry_falls_with_the_confidence_level_and_the_export_reads_back(tmp_path):
+    case = _slow_train(cfg.load("safety_cases", CASE))
+    case = case.model_copy(update={"etcs": case.etcs.model_copy(update={"export_confidence_level": 3})})
+    table = kdry_table(case, "empty", method="is", seed=1, levels=(0, 1, 3))
+    assert np.all(np.diff(table.kdry, axis=1) < 0)  # a higher confidence, a lower safe deceleration
+    assert np.all(np.abs(table.kdry[:, 0] - 1.0) < 0.01)  # the median stop brakes as the nominal one
+    assert np.all(table.kdry[:, 2] < 1.0) and np.all(table.kdry[:, 2] > 0.5)
+    params = export_kdry_table(table, case)
+    path = write_etcs_brake_params(tmp_path / "etcs_brake_params.json", params)
+    back = read_etcs_brake_params(path)
+    assert back["k_dry"]["values"] == pytest.approx(table.kdry[:, 2].tolist(), rel=1e-15)
+    assert back["gamma_emergency"]["values"] == pytest.approx(table.nominal_deceleration_mps2.tolist(), rel=1e-15)
+    assert back["gamma_emergency"]["boundaries"] == pytest.approx([20 / 3.6, 40 / 3.6], rel=1e-15)
+    assert back["t_be"] == table.build_up_time_s and back["k_wet"]["values"] == [0.8, 0.8, 0.8]
+    # The service brake decelerates less than the emergency brake (lower cylinder pressure).
+    assert all(s < e for s, e in zip(back["gamma_service"]["values"], back["gamma_emergency"]["values"]))
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda p: p.update(k_dri=p.pop("k_dry")), r"missing field\(s\) \['k_dry'\], unknown field\(s\) \['k_dri'\]"),
+        (lambda p: p["k_dry"]["values"].pop(), "k_dry: 2 boundaries and 2 values"),
+        (lambda p: p["k_wet"]["values"].__setitem__(0, -0.1), "k_wet: values and boundaries must be >= 0"),
+        (lambda p: p["gamma_service"].update(boundaries=[5.0, 5.0]), "must be strictly increasing"),
+        (lambda p: p.update(t_be="1.5"), "t_be = '1.5': need a number"),
+    ],
+)
+def test_an_export_osrd_would_refuse_is_refused(tmp_path, change, message):
+    curve = {"boundaries": [5.0, 10.0], "values": [1.0, 0.9, 0.8]}
+    params = {name: {"boundaries": list(curve["boundaries"]), "values": list(curve["values"])} for name in CURVES}
+    params.update({name: 1.0 for name in TIMES})
+    change(params)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(params))
+    with pytest.raises(OsrdFormatError, match=message):
+        read_etcs_brake_params(path)
+    assert str(path) in str(pytest.raises(OsrdFormatError, read_etcs_brake_params, path).value)

@@ -6,6 +6,7 @@
     brakegym mcs       a Monte-Carlo campaign: dynamometer (Table 1) or field (Table 4)
     brakegym trends    the paper's trends recomputed
     brakegym tail      the braking distance exceeded with a small probability (safety cases)
+    brakegym kdry      the ETCS emergency brake model: Kdry_rst per speed band and confidence level
     brakegym train | evaluate | stress   controllers on the environments
     brakegym synth     synthetic recordings with concealed effects
     brakegym diagnose  locate and name the missing physics in recordings

@@ -1,7 +1,8 @@
-"""``brakegym tail``: braking-distance tails of a safety case.
+"""``brakegym tail | kdry``: braking-distance tails and the ETCS brake model of a safety case.
 
     brakegym tail --v0 160 --load empty --probability 1e-9 --method is
     brakegym tail --v0 160 --load empty --distance 1400
+    brakegym kdry --load empty --figure kdry.png --osrd etcs_brake_params.json
 
 JSON keys written by ``tail`` (``--json``) are a public interface and stay stable: probability,
 braking_distance_m, ci95_m, model_evaluations, method, seconds, probability_ci95, threshold, and
@@ -111,6 +112,78 @@ def report(result) -> str:
     return "\n".join(lines)
 
 
+def cmd_kdry(args: argparse.Namespace) -> int:
+    from ..safety.etcs import kdry_table
+    from ..safety.osrd import export_kdry_table, write_etcs_brake_params
+
+    case = safety_case_for(args.vehicle, args.safety_case)
+    if args.osrd and case.etcs.export_confidence_level not in args.levels:
+        raise UsageError(
+            f"--osrd exports Kdry at the safety case's M_NVEBCL {case.etcs.export_confidence_level}: "
+            f"include it in --levels"
+        )
+    settings = {} if args.n_per_level is None else {"n_per_level": args.n_per_level}
+    tables = []
+    for load in args.load:
+        table = kdry_table(
+            case, load, method=args.method, seed=args.seed, levels=tuple(args.levels), step_s=args.step, **settings
+        )
+        print(kdry_report(table))
+        tables.append(table)
+    if args.figure:
+        from ..safety.figures import kdry_figure  # matplotlib only where a figure is asked for
+
+        print(f"figure: {kdry_figure(tables, args.figure)}")
+    if args.osrd:
+        for load, table in zip(args.load, tables):
+            path = args.osrd if len(tables) == 1 else _with_suffix(args.osrd, load)
+            print(f"OSRD etcs_brake_params: {write_etcs_brake_params(path, export_kdry_table(table, case, args.step))}")
+    write_json(args.json, [table.as_dict() for table in tables] if len(tables) > 1 else tables[0].as_dict())
+    return 0
+
+
+def kdry_report(table) -> str:
+    """The table ``brakegym kdry`` prints: a row per confidence level, a column per speed band."""
+    from ..safety.etcs import confidence
+
+    edges = table.speed_edges_kmh
+    bands = [f"{low:g}-{high:g} km/h" for low, high in zip(edges, edges[1:])]
+    width = 22
+    lines = [
+        f"Kdry_rst: {table.vehicle}, load {table.load}, safety case {table.case}, method {table.method}, "
+        f"seed {table.seed}; T_be {table.build_up_time_s:.2f} s; {table.model_evaluations} simulated stops in "
+        f"{table.seconds:.0f} s",
+        f"{'':<22}" + "".join(f"{band:>{width}}" for band in bands),
+        f"{'A_brake_emergency':<22}" + "".join(f"{a:>{width}.3f}" for a in table.nominal_deceleration_mps2),
+        f"{'conventional':<22}" + "".join(f"{a:>{width}.3f}" for a in table.conventional_deceleration_mps2),
+    ]
+    for column, level in enumerate(table.levels):
+        cells = "".join(
+            f"{f'{k:.3f} ({low:.3f}-{high:.3f})':>{width}}"
+            for k, (low, high) in zip(table.kdry[:, column], table.kdry_ci95[:, column])
+        )
+        lines.append(f"{f'M_NVEBCL {level} ({100 * confidence(level):.7g} %)':<22}" + cells)
+    return "\n".join(lines)
+
+
+def _with_suffix(path: str, load: str) -> str:
+    """``out.json`` for load ``max`` as ``out_max.json``."""
+    stem, dot, extension = path.rpartition(".")
+    return f"{stem}_{load}.{extension}" if dot else f"{path}_{load}"
+
+
+def _levels(text: str) -> list[int]:
+    try:
+        levels = sorted({int(part) for part in text.split(",")})
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--levels must be whole numbers 0 ... 9 separated by commas, got {text!r}"
+        ) from None
+    if not all(0 <= level <= 9 for level in levels):
+        raise argparse.ArgumentTypeError(f"--levels must lie in 0 ... 9 (M_NVEBCL), got {text!r}")
+    return levels
+
+
 def _units(counts: list[int]) -> str:
     return f"{counts[0]}" if len(counts) == 1 else f"{counts[0]} to {counts[-1]}"
 
@@ -147,3 +220,30 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--json", help="write the result as JSON")
     p.set_defaults(func=cmd_tail)
+
+    p = sub.add_parser(
+        "kdry",
+        help="the ETCS emergency brake model of a safety case: nominal deceleration per speed band and the "
+        "correction factor Kdry_rst at the confidence levels M_NVEBCL 0-9, an OSRD export",
+    )
+    p.add_argument("--vehicle", default="emu_8axle", help="vehicle config (default emu_8axle)")
+    p.add_argument("--load", required=True, action="append", help="load case; repeat for several (empty, max, ...)")
+    p.add_argument(
+        "--safety-case", help="stochastic inputs and ETCS speed bands (default: the one named as the vehicle)"
+    )
+    p.add_argument("--method", choices=("is", "subset"), default="is", help="rare-event estimator (default is)")
+    p.add_argument("--seed", type=non_negative_int("--seed"), default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--levels", type=_levels, default=list(range(10)), help="M_NVEBCL levels, comma-separated (default 0,...,9)"
+    )
+    p.add_argument("--n-per-level", type=positive_int("--n-per-level"), help="samples per level of the estimator")
+    p.add_argument(
+        "--step",
+        type=finite_positive("--step"),
+        default=DEFAULT_STEP_S,
+        help=f"integration step in s (default {DEFAULT_STEP_S})",
+    )
+    p.add_argument("--json", help="write the tables as JSON")
+    p.add_argument("--figure", help="write the deceleration figure (PNG)")
+    p.add_argument("--osrd", help="write OSRD's etcs_brake_params (JSON; one file per load, suffixed by it)")
+    p.set_defaults(func=cmd_kdry)

@@ -338,6 +338,35 @@ class ConventionalCalculation(StochasticInput):
     speed_step_kmh: float = Field(gt=0, le=50)
 
 
+class EtcsAssumptions(StochasticInput):
+    """Train data an ETCS braking-curve export needs that the braking model does not give."""
+
+    wet_rail_factor: float = Field(gt=0, le=1)  # Kwet_rst
+    gradient_correction_uphill: float = Field(ge=0, le=10)  # Kn+, m/s^2 per unit gradient
+    gradient_correction_downhill: float = Field(ge=0, le=10)  # Kn-
+    traction_cut_off_time_s: float = Field(ge=0)
+
+
+class EtcsBrakeModel(StrictModel):
+    """The train's ETCS emergency brake model: the speed bands of A_brake_emergency and Kdry_rst,
+    and the confidence level M_NVEBCL of an export (0: 50 %, n >= 1: 1 - 10^-n)."""
+
+    maximum_speed_kmh: float = Field(gt=0)
+    speed_band_edges_kmh: list[float]  # between 0 and the maximum speed, rising
+    export_confidence_level: int = Field(ge=0, le=9)
+    not_modelled: EtcsAssumptions
+
+    @model_validator(mode="after")
+    def _edges_inside(self) -> EtcsBrakeModel:
+        edges = [0.0, *self.speed_band_edges_kmh, self.maximum_speed_kmh]
+        if any(high <= low for low, high in zip(edges, edges[1:])):
+            raise ValueError(
+                f"speed_band_edges_kmh {self.speed_band_edges_kmh}: need rising values strictly between 0 and "
+                f"maximum_speed_kmh {self.maximum_speed_kmh}"
+            )
+        return self
+
+
 class SafetyCase(StrictModel):
     """The stochastic inputs of one train's emergency braking, for braking-distance tails and the
     ETCS correction factors (``configs/safety_cases/``)."""
@@ -353,6 +382,7 @@ class SafetyCase(StrictModel):
     response_time: ResponseTimeScatter
     brake_units: BrakeUnitAvailability
     conventional: ConventionalCalculation
+    etcs: EtcsBrakeModel
 
 
 class EffectConfig(StrictModel):

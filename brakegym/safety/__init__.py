@@ -7,6 +7,9 @@ safety case (``configs/safety_cases/``).
   (:meth:`BrakingModel.strata`).
 - :mod:`.tail`: the braking distance at a probability, or the probability of a distance, with
   95 % intervals (:func:`~.tail.braking_distance_tail`, ``brakegym tail``).
+- :mod:`.etcs`: the ETCS emergency brake model, A_brake_emergency and Kdry_rst(V, EBCL) per speed
+  band and confidence level (:func:`~.etcs.kdry_table`, ``brakegym kdry``); :mod:`.osrd` exports
+  it to OSRD's rolling-stock schema and reads it back; :mod:`.figures` draws it.
 - :mod:`.conventional`: the braking distance as the conventional calculation gives it (constant
   mean pad friction, equivalent response time, speed steps), for comparison.
 """

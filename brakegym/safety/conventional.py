@@ -46,6 +46,20 @@ class ConventionalStop:
     decelerations_mps2: np.ndarray  # one per speed step
     braking_distance_m: float
 
+    def band_decelerations_mps2(self, speed_edges_kmh) -> np.ndarray:
+        """The constant deceleration that covers each band between consecutive
+        ``speed_edges_kmh`` (rising, within 0 and v_0) in the same distance as the speed steps,
+        from the equivalent response time on: ETCS's view of the conventional calculation."""
+        edges = kmh_to_mps(np.asarray(speed_edges_kmh, dtype=float))
+        steps_high, steps_low = kmh_to_mps(self.speed_edges_kmh[:-1]), kmh_to_mps(self.speed_edges_kmh[1:])
+        decelerations = []
+        for low, high in zip(edges[:-1], edges[1:]):
+            top, bottom = np.minimum(steps_high, high), np.maximum(steps_low, low)
+            inside = top > bottom
+            distance = np.sum((top[inside] ** 2 - bottom[inside] ** 2) / (2.0 * self.decelerations_mps2[inside]))
+            decelerations.append((high**2 - low**2) / (2.0 * distance))
+        return np.array(decelerations)
+
     def as_dict(self) -> dict[str, float]:
         return {
             "braking_distance_m": self.braking_distance_m,

@@ -13,18 +13,19 @@ case's points mean the same inputs whatever it switches off.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import special, stats
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, run_commanded_stops, train_conditions
+from ..applications import DEFAULT_STEP_S, StopSummary, run_commanded_stops, train_conditions
 from ..effects.hooks import ConstantFrictionFactor
 from ..physics import BrakeCylinder, friction_from_normals
 from ..plants import brake_cylinder, scatter_partition, stochastic_friction, train_plant
 from ..simulator import BatchConditions
+from ..simulator.metrics import SpeedCrossings
 from ..units import kmh_to_mps
 
 # A stop whose brakes all fail is slowed by running resistance alone; far longer than any stop the
@@ -102,12 +103,45 @@ class BrakingModel:
     def braking_distance_m(self, u: np.ndarray, failed_units: int | None = None) -> np.ndarray:
         """The braking distance of each stop, m, (n,). With ``failed_units`` k, exactly k units
         fail in every stop (the stratum k of :meth:`strata`) instead of each with its probability."""
+        return self.stops(u, failed_units).braking_distance_m
+
+    def band_decelerations_mps2(
+        self, u: np.ndarray, speed_edges_kmh: Sequence[float], build_up_time_s: float, failed_units: int | None = None
+    ) -> np.ndarray:
+        """The deceleration of each speed band of each stop, m/s^2, (n, bands), as ETCS counts it:
+        the brake acts in full from the build-up time ``build_up_time_s`` after the command, and
+        each band between consecutive ``speed_edges_kmh`` (ascending, from 0 to the initial
+        speed) is passed at the constant deceleration that covers it in the same distance,
+        (V_high^2 - V_low^2) / (2 distance). The top band starts at the state at the build-up
+        time, the bottom band ends at standstill."""
+        edges = np.asarray(speed_edges_kmh, dtype=float)
+        if edges[0] != 0 or edges[-1] != self.initial_speed_kmh or np.any(np.diff(edges) <= 0):
+            raise ValueError(
+                f"speed band edges {edges.tolist()} km/h: need 0 first, rising, and the initial speed "
+                f"{self.initial_speed_kmh} km/h last"
+            )
+        inner = kmh_to_mps(edges[1:-1])[::-1]  # passed from the top down
+        crossing = SpeedCrossings(len(u), inner, build_up_time_s)
+        summary = self.stops(u, failed_units, observers=[crossing])
+        if not np.all(crossing.position_m[0] >= crossing.position_at_time_m):
+            raise ValueError(
+                f"the build-up time {build_up_time_s} s ends below the top band's lower edge {edges[-2]} km/h: "
+                f"choose a lower edge"
+            )
+        speeds = np.vstack([crossing.speed_at_time_mps, np.broadcast_to(inner[:, None], crossing.position_m.shape)])
+        speeds = np.vstack([speeds, np.zeros((1, len(u)))])
+        positions = np.vstack([crossing.position_at_time_m, crossing.position_m, summary.stop_distance_m])
+        decelerations = (speeds[:-1] ** 2 - speeds[1:] ** 2) / (2.0 * (positions[1:] - positions[:-1]))
+        return decelerations[::-1].T  # bands from the lowest up
+
+    def stops(self, u: np.ndarray, failed_units: int | None = None, observers: Sequence = ()) -> StopSummary:
+        """The stops of the points ``u`` (see :meth:`braking_distance_m`)."""
         u = self._checked(u)
         n = len(u)
         working = self.working_units(u, failed_units)
         hooks = [] if working.all() else [ConstantFrictionFactor(np.moveaxis(working.astype(float), 0, -1))]
         command = self.pressure_commands_bar(u)
-        summary = run_commanded_stops(
+        return run_commanded_stops(
             self.plant,
             self.conditions(u),
             self.cylinders(u),
@@ -117,8 +151,8 @@ class BrakingModel:
             step_s=self.step_s,
             friction_modifiers=hooks,
             max_time_s=UNBRAKED_STOP_LIMIT_S,
+            observers=observers,
         )
-        return summary.braking_distance_m
 
     def nominal_braking_distance_m(self) -> float:
         """The stop with every input at its nominal value (u = 0) and no unit failed."""
@@ -165,17 +199,18 @@ class BrakingModel:
             np.put_along_axis(working, np.argsort(units, axis=1)[:, :failed_units], False, axis=1)
         return working.reshape(len(u), *self.plant.disc_shape)
 
-    def strata(self) -> list[tuple[float, Callable[[np.ndarray], np.ndarray]]]:
+    def strata(self, response: Callable[..., np.ndarray] | None = None) -> list[tuple[float, Callable]]:
         """The model split by the number k of failed units (law of total probability): for each k
-        of positive probability, its probability Binomial(k; units, q) and the braking distance
-        with exactly k units failed. The discrete input is gone from each stratum's response, which
-        the rare-event estimators need (one failure region per stratum instead of one per set of
-        failed units)."""
+        of positive probability, its probability Binomial(k; units, q) and the response with
+        exactly k units failed, ``response(u, failed_units=k)`` (default the braking distance).
+        The discrete input is gone from each stratum's response, which the rare-event estimators
+        need (one failure region per stratum instead of one per set of failed units)."""
+        response = response or self.braking_distance_m
         n_units = self.vehicle.n_discs
         failure = self.case.brake_units.failure_probability_per_demand
         weights = stats.binom.pmf(np.arange(n_units + 1), n_units, failure)
         return [
-            (float(weight), functools.partial(self.braking_distance_m, failed_units=k))
+            (float(weight), functools.partial(response, failed_units=k))
             for k, weight in enumerate(weights)
             if weight > 0
         ]

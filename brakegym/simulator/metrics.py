@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .integrator import Simulator
-from .state import MU_DISTANCE, MU_EFF_DISTANCE, POSITION, T_DISC, T_FRIC
+from .state import MU_DISTANCE, MU_EFF_DISTANCE, POSITION, SPEED, T_DISC, T_FRIC
 
 
 class StopMetrics:
@@ -86,3 +86,43 @@ class StopMetrics:
         """mu_s,eff: Eq. 15's mu_eff averaged over distance like Eq. 3, per train."""
         distance = sim.train[POSITION] - self.train_onset_position_m
         return (sim.train[MU_EFF_DISTANCE] - self.train_onset_mu_eff_distance) / distance
+
+
+class SpeedCrossings:
+    """Where and when each train's speed first falls to each of ``speeds_mps`` (S,), updated after
+    each step, and its state at ``time_s`` (nan if the run never passes it): the points that split a
+    stop into speed bands.
+
+    Inside a step the deceleration is taken as constant (as the stop interpolation does), so the
+    position grows linearly with the fall of v^2: a train passes speed V at the fraction
+    (v_0^2 - V^2) / (v_0^2 - v_1^2) of the step's distance. Arrays are (S, B); nan until passed.
+    """
+
+    def __init__(self, n_trains: int, speeds_mps: np.ndarray, time_s: float | None = None) -> None:
+        self.speeds_mps = np.asarray(speeds_mps, dtype=float)
+        n = n_trains
+        self.position_m = np.full((len(self.speeds_mps), n), np.nan)
+        self.time_s = np.full((len(self.speeds_mps), n), np.nan)
+        self.at_time_s = time_s
+        self.position_at_time_m = np.full(n, np.nan)
+        self.speed_at_time_mps = np.full(n, np.nan)
+
+    def update(self, sim: Simulator) -> None:
+        record = sim.last_step
+        assert record is not None
+        v0, v1 = record.train_start[SPEED], sim.train[SPEED]
+        s0, s1 = record.train_start[POSITION], sim.train[POSITION]
+        for row, speed in enumerate(self.speeds_mps):
+            passed = np.isnan(self.position_m[row]) & (v0 >= speed) & (v1 < speed)
+            if passed.any():
+                fall = np.where(passed, v0**2 - v1**2, 1.0)
+                share = np.where(passed, (v0**2 - speed**2) / fall, 0.0)
+                self.position_m[row] = np.where(passed, s0 + share * (s1 - s0), self.position_m[row])
+                # Constant deceleration: the speed falls linearly in time.
+                time_share = np.where(passed, (v0 - speed) / np.where(passed, v0 - v1, 1.0), 0.0)
+                self.time_s[row] = np.where(passed, record.time_start_s + time_share * sim.step_s, self.time_s[row])
+        if self.at_time_s is not None and record.time_start_s <= self.at_time_s < record.time_start_s + sim.step_s:
+            elapsed = self.at_time_s - record.time_start_s
+            deceleration = (v0 - v1) / sim.step_s
+            self.speed_at_time_mps = v0 - deceleration * elapsed
+            self.position_at_time_m = s0 + v0 * elapsed - 0.5 * deceleration * elapsed**2
