@@ -20,7 +20,8 @@ import numpy as np
 from scipy import special, stats
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, StopSummary, run_commanded_stops, train_conditions
+from ..applications import StopSummary, run_commanded_stops, train_conditions
+from ..defaults import DEFAULT_STEP_S
 from ..effects.hooks import ConstantFrictionFactor
 from ..physics import BrakeCylinder, friction_from_normals
 from ..plants import brake_cylinder, scatter_partition, stochastic_friction, train_plant
