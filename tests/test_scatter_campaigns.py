@@ -8,7 +8,7 @@ from brakegym import config as cfg
 from brakegym.applications import TrainApplication
 from brakegym.campaigns import dyno_applications, field_applications, field_campaign, train_monte_carlo
 from brakegym.physics import draw_friction, draw_running_resistance
-from brakegym.plants import scatter_partition, stochastic_friction
+from brakegym.plants import friction_for_samples, scatter_partition, stochastic_friction, train_scatter
 from brakegym.statistics import envelope, sample_statistics
 
 N = 4000
@@ -19,7 +19,8 @@ def material():
     return cfg.load("materials", "ehret2022")
 
 
-def _draw(material, setup_name, seed=7):
+def _rng_draw(material, setup_name, seed=7):
+    """A friction draw from a numpy generator (the environments' and synthetic recordings' way)."""
     return draw_friction(
         np.random.default_rng(seed),
         stochastic_friction(material),
@@ -29,13 +30,24 @@ def _draw(material, setup_name, seed=7):
     )
 
 
-def test_ds_is_nominal(material):
-    draw = _draw(material, "ds")
+def _per_sample_draw(material, setup_name, seed=7):
+    """A friction draw from the per-sample streams (the campaigns' way)."""
+    partition = scatter_partition(cfg.load("setups", setup_name))
+    return friction_for_samples(stochastic_friction(material), partition, (8, 2), seed, np.arange(N))
+
+
+@pytest.fixture(params=[_rng_draw, _per_sample_draw], ids=["generator", "per-sample"])
+def draw_with(request):
+    return request.param
+
+
+def test_ds_is_nominal(material, draw_with):
+    draw = draw_with(material, "ds")
     assert np.all(draw.initial_mu == 0.35) and np.all(draw.power_coefficient_per_s == 0.008)
 
 
-def test_mcs100_independent_discs(material):
-    draw = _draw(material, "mcs-100")
+def test_mcs100_independent_discs(material, draw_with):
+    draw = draw_with(material, "mcs-100")
     mu = draw.initial_mu.reshape(N, 16)
     assert mu.std(ddof=1) == pytest.approx(0.01, rel=0.03)
     assert draw.power_coefficient_per_s.std(ddof=1) == pytest.approx(0.001, rel=0.03)
@@ -43,9 +55,9 @@ def test_mcs100_independent_discs(material):
     assert abs(np.corrcoef(mu[:, 0], mu[:, 1])[0, 1]) < 0.06
 
 
-def test_mcs7525_partition_of_sigma(material):
+def test_mcs7525_partition_of_sigma(material, draw_with):
     """Global part 0.75 sigma shared by the discs, individual part 0.25 sigma per disc."""
-    mu = _draw(material, "mcs-75-25").initial_mu.reshape(N, 16)
+    mu = draw_with(material, "mcs-75-25").initial_mu.reshape(N, 16)
     within = mu - mu.mean(axis=1, keepdims=True)
     assert within.std(ddof=1) * np.sqrt(16 / 15) == pytest.approx(0.25 * 0.01, rel=0.03)
     assert mu.std(ddof=1) == pytest.approx(np.hypot(0.75, 0.25) * 0.01, rel=0.03)
@@ -53,23 +65,41 @@ def test_mcs7525_partition_of_sigma(material):
     assert np.corrcoef(mu[:, 0], mu[:, 5])[0, 1] == pytest.approx(expected_correlation, abs=0.03)
 
 
-def test_shared_draw_is_one_value_per_application(material):
-    mu = _draw(material, "shared").initial_mu.reshape(N, 16)
+def test_shared_draw_is_one_value_per_application(material, draw_with):
+    mu = draw_with(material, "shared").initial_mu.reshape(N, 16)
     assert np.all(mu == mu[:, :1])
 
 
-def test_draws_are_normal(material):
-    a = _draw(material, "mcs-100").power_coefficient_per_s.ravel()
+def test_draws_are_normal(material, draw_with):
+    a = draw_with(material, "mcs-100").power_coefficient_per_s.ravel()
     assert stats.normaltest(a).pvalue > 1e-3
 
 
-def test_running_resistance_scatter():
+def test_per_sample_draws_do_not_depend_on_the_other_samples_drawn():
+    """A campaign sample's friction and resistance depend on the seed and its index alone: any
+    split of the indices, in any order, gives the same numbers bit for bit."""
+    scatter = train_scatter(cfg.load("vehicles", "emu_8axle"), cfg.load("setups", "mcs-75-25"))
+    whole, resistance = scatter.draw_for_samples(5, np.arange(1000))
+    for part in (np.arange(3), np.arange(999, 499, -7), np.array([17])):
+        draw, part_resistance = scatter.draw_for_samples(5, part)
+        assert np.array_equal(draw.initial_mu, whole.initial_mu[part])
+        assert np.array_equal(draw.power_coefficient_per_s, whole.power_coefficient_per_s[part])
+        assert np.array_equal(part_resistance, resistance[part])
+    other, other_resistance = scatter.draw_for_samples(6, np.arange(1000))
+    assert not np.any(other.initial_mu == whole.initial_mu) and not np.any(other_resistance == resistance)
+
+
+@pytest.mark.parametrize("per_sample", [False, True], ids=["generator", "per-sample"])
+def test_running_resistance_scatter(per_sample):
     vehicle = cfg.load("vehicles", "emu_8axle")
     rng = np.random.default_rng(3)
     resistance = vehicle.running_resistance
-    scattered = draw_running_resistance(
-        rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N
-    )
+    if per_sample:
+        scattered = train_scatter(vehicle, cfg.load("setups", "mcs-100")).draw_for_samples(3, np.arange(N))[1]
+    else:
+        scattered = draw_running_resistance(
+            rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N
+        )
     assert scattered.mean() == pytest.approx(2500, abs=4 * 1600 / np.sqrt(N))
     assert scattered.std(ddof=1) == pytest.approx(1600, rel=0.04)
     fixed = draw_running_resistance(
