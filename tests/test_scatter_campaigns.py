@@ -7,6 +7,7 @@ from scipy import stats
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication
 from brakegym.campaigns import dyno_applications, field_applications, field_campaign, train_monte_carlo
+from brakegym.execution import LocalExecutor
 from brakegym.physics import draw_friction, draw_running_resistance
 from brakegym.plants import friction_for_samples, scatter_partition, stochastic_friction, train_scatter
 from brakegym.statistics import envelope, sample_statistics
@@ -151,7 +152,7 @@ def test_campaign_sizes():
     assert not any(a.load == "max" and a.initial_speed_kmh == 160 for a in apps)
 
 
-def test_same_seed_same_campaign_bit_for_bit_any_worker_count():
+def test_same_seed_same_stops_bit_for_bit_any_executor_and_chunk_size():
     vehicle = cfg.load("vehicles", "emu_8axle")
     apps = [
         TrainApplication(load=load, brake_mode="emergency", actuation=act, initial_speed_kmh=v)
@@ -160,9 +161,9 @@ def test_same_seed_same_campaign_bit_for_bit_any_worker_count():
         for v in (100.0, 140.0)
     ] * 150
     setup = cfg.load("setups", "mcs-75-25")
-    one, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, workers=1)
-    two, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, workers=2)
-    other, _, _ = train_monte_carlo(vehicle, apps, setup, seed=12, workers=1)
+    one, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11)
+    two, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, executor=LocalExecutor(2), chunk_size=250)
+    other, _, _ = train_monte_carlo(vehicle, apps, setup, seed=12)
     assert np.array_equal(one.stop_distance_m, two.stop_distance_m)
     assert np.array_equal(one.mu_s, two.mu_s)
     assert not np.array_equal(one.stop_distance_m, other.stop_distance_m)
@@ -177,7 +178,7 @@ def test_sixteen_discs_average_independent_scatter():
     rel = {}
     for name in ("shared", "mcs-100", "mcs-75-25"):
         setup = cfg.load("setups", name).model_copy(update={"resistance_scatter": False})
-        summary, _, _ = train_monte_carlo(vehicle, [app] * 300, setup, seed=5, workers=1)
+        summary, _, _ = train_monte_carlo(vehicle, [app] * 300, setup, seed=5)
         rel[name] = summary.mu_s_eff.std(ddof=1) / summary.mu_s_eff.mean()
     assert 3.2 < rel["shared"] / rel["mcs-100"] < 5.0
     assert 0.65 < rel["mcs-75-25"] / rel["shared"] < 0.9
@@ -185,7 +186,7 @@ def test_sixteen_discs_average_independent_scatter():
 
 def test_field_campaign_table_and_summary():
     campaign = cfg.load("campaigns", "field2022").model_copy(update={"repetitions": 3})
-    result = field_campaign(campaign, cfg.load("setups", "mcs-100"), seed=1, workers=2)
+    result = field_campaign(campaign, cfg.load("setups", "mcs-100"), seed=1)
     assert len(result.applications) == 88 * 3
     assert result.applications.stop_time_s.notna().all()
     summary = result.application_summary()
