@@ -221,6 +221,14 @@ def test_cli_resume_of_another_campaign_names_the_field(tmp_path, capsys):
     assert "one chunk per load case" in capsys.readouterr().err
 
 
+def test_cli_field_campaign_of_any_size(tmp_path):
+    out = tmp_path / "field.json"
+    assert main(_mcs("--repetitions", "2", "--out", str(tmp_path / "run"), "--json", str(out))) == 0
+    data = json.loads(out.read_text())
+    assert data["applications"] == 176 and {row["n"] for row in data["field_applications"]} == {2}
+    assert json.loads((tmp_path / "run" / "manifest.json").read_text())["stops"] == 176
+
+
 def test_cli_dask_without_distributed_says_how_to_install_it(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
     assert main(_mcs("--executor", "dask")) == 2

@@ -111,6 +111,8 @@ def cmd_mcs(args: argparse.Namespace) -> int:
         raise UsageError(
             "--chunk-size is for the field campaign; the dynamometer campaign runs one chunk per load case"
         )
+    if args.campaign == "dyno" and args.repetitions is not None:
+        raise UsageError("--repetitions is for the field campaign; the dynamometer's applications are in its rig")
     with executor_from_arguments(args) as executor:
         if args.campaign == "dyno":
             payload = _dyno_mcs(args, setup, executor)
@@ -168,6 +170,8 @@ def _field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> d
     from .. import campaigns
 
     campaign = cfg.load("campaigns", "field2022")
+    if args.repetitions is not None:
+        campaign = campaign.model_copy(update={"repetitions": args.repetitions})
     total = len(campaigns.field_applications(campaign)) * campaign.repetitions
     with progress(total, "field campaign") as bar:
         result = campaigns.field_campaign(
@@ -319,6 +323,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", help="write the summary as JSON")
     p.add_argument("--csv", help="write every simulated application as CSV")
     p.add_argument("--figures", help="folder for PNG figures")
+    p.add_argument(
+        "--repetitions",
+        type=positive_int("--repetitions"),
+        help="field campaign: stops per field application (default: the campaign's, 50)",
+    )
     p.add_argument("--step", **step)
     add_execution_options(p)
     p.set_defaults(func=cmd_mcs)
