@@ -1,22 +1,26 @@
-"""Speed of the batched simulator against the solve_ivp baseline, measured in one run.
+"""Speed of the field campaign on each executor, and against the solve_ivp baseline, in one run.
 
-    python benchmarks/bench_campaign.py [--baseline-stops 40] [--step 0.2]
+    python benchmarks/bench_campaign.py [--rounds 3] [--baseline-stops 40] [--step 0.2] [--no-dask]
 
-Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs) in one
-process on one kernel thread (the one-core reference), in one process on every kernel thread, and
-in 2 worker processes of one thread each, then a sample of the same stops (same draws) one ``solve_ivp`` call
-each, and prints wall times, disc-steps per second and the per-disc-stop speed ratio, with the
-largest difference in stop distance between the two. Timings on a shared machine vary from run to
-run; the ratio is measured within one run for that reason.
+Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs, chunks
+of the default size) on: the inline executor with one kernel thread (the one-core reference), the
+inline executor with every kernel thread, 2 local worker processes, and a local Dask cluster of 2
+worker processes (started once, before the timed runs). The variants take turns, ``--rounds``
+times, so that a machine whose load changes during the run affects them alike; each variant's
+best and median time are printed. Then a sample of the same stops (same draws), one ``solve_ivp``
+call each, for the per-disc-stop speed ratio, with the largest difference in stop distance.
+Timings on a shared machine vary from run to run; compare the variants within one run.
 
 The compiled kernels are loaded before the timed runs (the line "kernels loaded" says how long
 that took: numba's start-up and the disk cache, or the first compile on a new machine); a
-campaign in a fresh process pays it once on top of the times shown.
+campaign in a fresh process pays it once on top of the times shown, and so does each Dask worker
+(not timed: the cluster runs one untimed campaign first).
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -29,15 +33,19 @@ from solve_ivp_baseline import solve_ivp_stop  # noqa: E402
 
 from brakegym import config as cfg  # noqa: E402
 from brakegym.applications import DEFAULT_STEP_S  # noqa: E402
-from brakegym.campaigns import field_applications, train_monte_carlo  # noqa: E402
+from brakegym.campaigns import field_applications, field_campaign  # noqa: E402
+from brakegym.execution import DaskExecutor, InlineExecutor, LocalExecutor  # noqa: E402
+from brakegym.plants import train_scatter  # noqa: E402
 from brakegym.simulator import kernel  # noqa: E402
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--baseline-stops", type=int, default=40)
     parser.add_argument("--step", type=float, default=DEFAULT_STEP_S)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--no-dask", action="store_true", help="leave the Dask cluster out")
     args = parser.parse_args()
 
     campaign = cfg.load("campaigns", "field2022")
@@ -51,54 +59,61 @@ def main() -> None:
     load_s = time.perf_counter() - start
 
     all_threads = kernel.kernel_threads()
-    variants = {
-        "1 process, 1 thread": (1, 1),
-        f"1 process, {all_threads} threads": (1, all_threads),
-        "2 processes": (2, 1),
+    executors = {
+        "inline, 1 kernel thread": InlineExecutor(kernel_threads=1),
+        f"inline, {all_threads} kernel threads": InlineExecutor(kernel_threads=all_threads),
+        "local, 2 processes": LocalExecutor(2),
     }
-    timings = {}
-    summaries = {}
-    for label, (workers, threads) in variants.items():
-        kernel.set_kernel_threads(threads)
+    if not args.no_dask:
         start = time.perf_counter()
-        summary, draw, resistance = train_monte_carlo(vehicle, apps, setup, args.seed, args.step, workers=workers)
-        timings[label] = time.perf_counter() - start
-        summaries[label] = summary
-    kernel.set_kernel_threads(all_threads)
-    first = next(iter(summaries.values()))
-    identical = all(
-        np.array_equal(getattr(first, name), getattr(other, name), equal_nan=True)
-        for other in summaries.values()
-        for name in ("stop_distance_m", "stop_time_s", "mu_s", "mu_s_eff", "friction_heat_J")
-    )
+        dask = DaskExecutor(workers=2)
+        field_campaign(campaign, setup, args.seed, args.step, executor=dask)  # the workers load the kernels
+        print(f"  Dask local cluster of 2 workers started and warmed in {time.perf_counter() - start:.1f} s (untimed)")
+        executors["dask, 2 local workers"] = dask
+    timings: dict[str, list[float]] = {label: [] for label in executors}
+    tables = {}
+    for _ in range(args.rounds):
+        for label, executor in executors.items():
+            start = time.perf_counter()
+            result = field_campaign(campaign, setup, args.seed, args.step, executor=executor)
+            timings[label].append(time.perf_counter() - start)
+            tables[label] = result.applications
+    for executor in executors.values():
+        executor.close()
+    first = next(iter(tables.values()))
+    identical = all(other.equals(first) for other in tables.values())
+    stop_time_s = first.stop_time_s.to_numpy()
+    stop_distance_m = first.stop_distance_m.to_numpy()
     # Disc-steps each stop needs (to its standstill), not the steps a chunk runs until its last
     # train stops.
-    disc_steps = float(np.ceil(summary.stop_time_s / args.step).sum() * n_discs)
+    disc_steps = float(np.ceil(stop_time_s / args.step).sum() * n_discs)
 
     rng = np.random.default_rng(0)
     sample = rng.choice(len(apps), size=args.baseline_stops, replace=False)
+    draw, resistance = train_scatter(vehicle, setup).draw_for_samples(args.seed, sample)
     start = time.perf_counter()
     baseline = [
         solve_ivp_stop(
-            vehicle, apps[i], draw.initial_mu[i], draw.power_coefficient_per_s[i], float(resistance[i]), rtol=1e-6
+            vehicle, apps[i], draw.initial_mu[k], draw.power_coefficient_per_s[k], float(resistance[k]), rtol=1e-6
         )
-        for i in sample
+        for k, i in enumerate(sample)
     ]
     baseline_time = time.perf_counter() - start
     baseline_per_stop = baseline_time / len(sample)
-    difference = max(abs(d - summary.stop_distance_m[i]) / d for (_, d), i in zip(baseline, sample))
+    difference = max(abs(d - stop_distance_m[i]) / d for (_, d), i in zip(baseline, sample))
 
     stops = len(apps)
-    print(f"field campaign MCS-75/25: {stops} train stops x {n_discs} discs, step {args.step} s")
+    print(f"field campaign MCS-75/25: {stops} train stops x {n_discs} discs, step {args.step} s, {args.rounds} rounds")
     print(f"  kernels loaded in {load_s:.2f} s before timing (numba start-up and disk cache)")
-    one_core = timings["1 process, 1 thread"]
+    one_core = min(timings["inline, 1 kernel thread"])
     for label, seconds in timings.items():
-        per_disc_stop = seconds / (stops * n_discs)
+        best = min(seconds)
+        per_disc_stop = best / (stops * n_discs)
+        ratio = baseline_per_stop / n_discs / per_disc_stop
         print(
-            f"  batched, {label:<20}: {seconds:6.2f} s ({one_core / seconds:4.2f}x one core)   "
-            f"{disc_steps / seconds:12,.0f} disc-steps/s   "
-            f"{1e6 * per_disc_stop:7.2f} us per disc-stop   "
-            f"ratio vs solve_ivp {baseline_per_stop / n_discs / per_disc_stop:6.1f}x"
+            f"  {label:<26}: best {best:6.2f} s, median {statistics.median(seconds):6.2f} s "
+            f"({one_core / best:4.2f}x one core)   {disc_steps / best:12,.0f} disc-steps/s   "
+            f"{1e6 * per_disc_stop:6.2f} us per disc-stop   ratio vs solve_ivp {ratio:6.1f}x"
         )
     print(
         f"  solve_ivp baseline (RK45, rtol 1e-6), {len(sample)} stops: {1e3 * baseline_per_stop:.1f} ms per stop, "

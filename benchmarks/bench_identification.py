@@ -87,7 +87,7 @@ def main() -> None:
         print("  weak directions:", result.weak_combinations or "none")
 
     start = time.perf_counter()
-    campaign = campaigns.dyno_campaign(rig, cfg.load("setups", "mcs-100"), seed=7, workers=1)
+    campaign = campaigns.dyno_campaign(rig, cfg.load("setups", "mcs-100"), seed=7)
     result = identify(dyno_curves_from_campaign(campaign, rig), ["friction"], material, disc, settings)
     print(
         "\n[2] friction set from the mean curves of an MCS-100 campaign (nominal truth): "

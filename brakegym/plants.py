@@ -24,6 +24,8 @@ from .physics import (
     StochasticFriction,
     draw_friction,
     draw_running_resistance,
+    friction_from_normals,
+    running_resistance_from_normals,
 )
 from .simulator import Plant
 
@@ -157,6 +159,41 @@ def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
     )
 
 
+# The per-sample streams of a campaign: each kind of draw from its own stream derived from the
+# campaign's seed (reliability.streams.derived_seed), so that adding a kind of draw leaves the others.
+FRICTION_STREAM = 0
+RUNNING_RESISTANCE_STREAM = 1
+
+
+def _campaign_normals(seed: int, stream: int, sample_index: np.ndarray, dims: int) -> np.ndarray:
+    # Imported here: the environments import this module but not the campaign streams, and scipy
+    # (which the streams need) would add to every environment's start.
+    from .reliability.streams import derived_seed, standard_normals
+
+    return standard_normals(derived_seed(seed, stream), np.asarray(sample_index, dtype=np.int64), dims)
+
+
+def friction_for_samples(
+    friction: StochasticFriction,
+    partition: ScatterPartition,
+    disc_shape: tuple[int, int],
+    seed: int,
+    sample_index: np.ndarray,
+) -> FrictionDraw:
+    """The friction of the applications ``sample_index`` of a campaign seeded ``seed`` (paper
+    Eq. 13), each from its own counter-based normals: a sample's draw depends only on the seed and
+    its index, so any chunking of a campaign gives the same draws bit for bit.
+
+    Sample ``i`` takes ``2 + 2 n`` normals (``n`` discs) of the friction stream: the global normals
+    of mu_0 and a, then mu_0 of every disc, then a of every disc (axle by axle), the layout of
+    :func:`~brakegym.physics.scatter.friction_from_normals` and of a safety case's points. All are
+    drawn whatever the set-up, so one seed gives the same numbers in every set-up (common random
+    numbers)."""
+    n_discs = disc_shape[0] * disc_shape[1]
+    normals = _campaign_normals(seed, FRICTION_STREAM, sample_index, 2 + 2 * n_discs)
+    return friction_from_normals(friction, partition, normals[:, :2], normals[:, 2:].reshape(-1, 2, *disc_shape))
+
+
 @dataclass(frozen=True)
 class TrainScatter:
     """The scatter of a vehicle's stops in a set-up, built once from the configs: every disc's
@@ -175,6 +212,19 @@ class TrainScatter:
         friction = draw_friction(rng, self.friction, self.partition, n_applications, self.disc_shape)
         resistance = draw_running_resistance(
             rng, self.resistance_A_N, self.resistance_sigma_N, self.partition, n_applications
+        )
+        return friction, resistance
+
+    def draw_for_samples(self, seed: int, sample_index: np.ndarray) -> tuple[FrictionDraw, np.ndarray]:
+        """The friction draw and the running resistance A of the applications ``sample_index``
+        of a campaign seeded ``seed``, each sample's from its own counter-based normals
+        (:func:`friction_for_samples`; A from one normal of the running-resistance stream): the
+        same numbers for a sample whatever the other samples drawn with it. The campaigns draw
+        this way; the environments and synthetic recordings use :meth:`draw`."""
+        friction = friction_for_samples(self.friction, self.partition, self.disc_shape, seed, sample_index)
+        normals = _campaign_normals(seed, RUNNING_RESISTANCE_STREAM, sample_index, 1)[:, 0]
+        resistance = running_resistance_from_normals(
+            self.resistance_A_N, self.resistance_sigma_N, self.partition, normals
         )
         return friction, resistance
 

@@ -2,6 +2,7 @@
 
 - :func:`sample_statistics`: mean and standard deviation with their 95 % intervals (spec
   Section 6: Student's t for means, chi-square for standard deviations).
+- :func:`pooled_mean_std`: the mean and standard deviation of groups joined, from each group's.
 - :func:`envelope`: the instantaneous mean and standard deviation over applications (paper Eq. 2).
 - :func:`lag1_autocorrelation` and :func:`effective_sample_share`: how much independent
   information autocorrelated residuals hold (fits to time series count each sample as worth
@@ -66,6 +67,24 @@ def sample_statistics(values: Sequence[float] | np.ndarray, confidence: float = 
         mean_ci95=(mean - half_width, mean + half_width),
         std_ci95=(float(std * np.sqrt((n - 1) / chi_low)), float(std * np.sqrt((n - 1) / chi_high))),
     )
+
+
+def pooled_mean_std(
+    counts: Sequence[float] | np.ndarray, means: Sequence[float] | np.ndarray, stds: Sequence[float] | np.ndarray
+) -> tuple[float, float]:
+    """Mean and standard deviation (ddof 1) of several groups joined, from each group's count,
+    mean and standard deviation (ddof 1; a group of one has std 0): the within-group squares plus
+    the between-group squares. Lets a summary of many stops be built from summaries of parts
+    without holding every stop."""
+    n, mean_g, std_g = (np.asarray(values, dtype=float) for values in (counts, means, stds))
+    total = float(n.sum())
+    if total < 1:
+        raise ValueError("pooled_mean_std: no values in the groups")
+    mean = float(np.sum(n * mean_g) / total)
+    if total < 2:
+        return mean, math.nan
+    squares = np.sum((n - 1) * std_g**2) + np.sum(n * (mean_g - mean) ** 2)
+    return mean, float(np.sqrt(squares / (total - 1)))
 
 
 def envelope(trajectory_values: np.ndarray, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -63,7 +63,7 @@ nitpick_ignore_regex = [
     (r"py:.*", r"(stable_baselines3|sb3)(\..*)?"),
     (r"py:.*", r"torch(\..*)?"),
     (r"py:.*", r"matplotlib(\..*)?"),
-    (r"py:.*", r"(typing|types|collections\.abc|argparse|pathlib|importlib)(\..*)?"),
+    (r"py:.*", r"(typing|types|collections\.abc|argparse|pathlib|importlib|abc)(\..*)?"),
     # The standard library's names as annotations show them unqualified.
     (r"py:class", r"Path|Traversable"),
     # What a type annotation shows that is no name: the literals of Annotated[float, Gt(gt=0.1)],

@@ -389,7 +389,7 @@ def fig3_sixteen_discs(
     for resistance_scatter in (False, True):
         for name in setup_names:
             setup = cfg.load("setups", name).model_copy(update={"resistance_scatter": resistance_scatter})
-            summary, _, _ = train_monte_carlo(vehicle, applications, setup, seed=seed, workers=1)
+            summary, _, _ = train_monte_carlo(vehicle, applications, setup, seed=seed)
             results[(name, resistance_scatter)] = summary
 
     numbers: dict[str, object] = {

@@ -79,7 +79,7 @@ def synthetic_dyno_curves(tmp_path, monkeypatch, truth, cases, seed, until_s=Non
     with monkeypatch.context() as patch:
         patch.setenv(cfg.CONFIG_PATH_ENV, str(folder))
         truth_rig = cfg.load("rigs", "dynamometer")
-        result = campaigns.dyno_campaign(truth_rig, cfg.load("setups", "ds"), seed=0, step_s=0.1, workers=1)
+        result = campaigns.dyno_campaign(truth_rig, cfg.load("setups", "ds"), seed=0, step_s=0.1)
     clean = dyno_curves_from_campaign(result, truth_rig)
     rng = np.random.default_rng(seed)
     series = []

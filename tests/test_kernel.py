@@ -10,6 +10,7 @@ import pytest
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication, train_stops
 from brakegym.campaigns import field_applications, train_monte_carlo
+from brakegym.execution import LocalExecutor
 from brakegym.physics import BrakeCylinder, FrictionDraw, draw_friction
 from brakegym.physics.elementary import fractional_power
 from brakegym.plants import dynamometer_plant, scatter_partition, stochastic_friction, train_plant
@@ -370,8 +371,8 @@ def test_same_seed_gives_bit_identical_campaign(vehicle):
     campaign = cfg.load("campaigns", "field2022")
     apps = [app for app in field_applications(campaign)[:6] for _ in range(3)]
     setup = cfg.load("setups", "mcs-75-25")
-    first, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=1)
-    second, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=1)
+    first, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4)
+    second, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4)
     for name in SUMMARY_FIELDS:
         np.testing.assert_array_equal(getattr(first, name), getattr(second, name), err_msg=name)
 
@@ -409,11 +410,11 @@ def test_forked_campaign_workers_after_threaded_steps(vehicle):
     """A campaign's forked workers run single-threaded: a process that has run the threaded kernel
     can still fork them, and they give the one-process numbers."""
     campaign = cfg.load("campaigns", "field2022")
-    apps = [app for app in field_applications(campaign)[:6] for _ in range(370)]  # two chunks
+    apps = [app for app in field_applications(campaign)[:6] for _ in range(370)]
     setup = cfg.load("setups", "mcs-75-25")
     kernel.set_kernel_threads(numba.config.NUMBA_NUM_THREADS)
-    in_process, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=1)
-    forked, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, workers=2)
+    in_process, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4)
+    forked, _, _ = train_monte_carlo(vehicle, apps, setup, seed=4, executor=LocalExecutor(2))
     np.testing.assert_array_equal(forked.braking_distance_m, in_process.braking_distance_m)
 
 

@@ -7,8 +7,9 @@ from scipy import stats
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication
 from brakegym.campaigns import dyno_applications, field_applications, field_campaign, train_monte_carlo
+from brakegym.execution import LocalExecutor
 from brakegym.physics import draw_friction, draw_running_resistance
-from brakegym.plants import scatter_partition, stochastic_friction
+from brakegym.plants import friction_for_samples, scatter_partition, stochastic_friction, train_scatter
 from brakegym.statistics import envelope, sample_statistics
 
 N = 4000
@@ -19,7 +20,8 @@ def material():
     return cfg.load("materials", "ehret2022")
 
 
-def _draw(material, setup_name, seed=7):
+def _rng_draw(material, setup_name, seed=7):
+    """A friction draw from a numpy generator (the environments' and synthetic recordings' way)."""
     return draw_friction(
         np.random.default_rng(seed),
         stochastic_friction(material),
@@ -29,13 +31,24 @@ def _draw(material, setup_name, seed=7):
     )
 
 
-def test_ds_is_nominal(material):
-    draw = _draw(material, "ds")
+def _per_sample_draw(material, setup_name, seed=7):
+    """A friction draw from the per-sample streams (the campaigns' way)."""
+    partition = scatter_partition(cfg.load("setups", setup_name))
+    return friction_for_samples(stochastic_friction(material), partition, (8, 2), seed, np.arange(N))
+
+
+@pytest.fixture(params=[_rng_draw, _per_sample_draw], ids=["generator", "per-sample"])
+def draw_with(request):
+    return request.param
+
+
+def test_ds_is_nominal(material, draw_with):
+    draw = draw_with(material, "ds")
     assert np.all(draw.initial_mu == 0.35) and np.all(draw.power_coefficient_per_s == 0.008)
 
 
-def test_mcs100_independent_discs(material):
-    draw = _draw(material, "mcs-100")
+def test_mcs100_independent_discs(material, draw_with):
+    draw = draw_with(material, "mcs-100")
     mu = draw.initial_mu.reshape(N, 16)
     assert mu.std(ddof=1) == pytest.approx(0.01, rel=0.03)
     assert draw.power_coefficient_per_s.std(ddof=1) == pytest.approx(0.001, rel=0.03)
@@ -43,9 +56,9 @@ def test_mcs100_independent_discs(material):
     assert abs(np.corrcoef(mu[:, 0], mu[:, 1])[0, 1]) < 0.06
 
 
-def test_mcs7525_partition_of_sigma(material):
+def test_mcs7525_partition_of_sigma(material, draw_with):
     """Global part 0.75 sigma shared by the discs, individual part 0.25 sigma per disc."""
-    mu = _draw(material, "mcs-75-25").initial_mu.reshape(N, 16)
+    mu = draw_with(material, "mcs-75-25").initial_mu.reshape(N, 16)
     within = mu - mu.mean(axis=1, keepdims=True)
     assert within.std(ddof=1) * np.sqrt(16 / 15) == pytest.approx(0.25 * 0.01, rel=0.03)
     assert mu.std(ddof=1) == pytest.approx(np.hypot(0.75, 0.25) * 0.01, rel=0.03)
@@ -53,23 +66,41 @@ def test_mcs7525_partition_of_sigma(material):
     assert np.corrcoef(mu[:, 0], mu[:, 5])[0, 1] == pytest.approx(expected_correlation, abs=0.03)
 
 
-def test_shared_draw_is_one_value_per_application(material):
-    mu = _draw(material, "shared").initial_mu.reshape(N, 16)
+def test_shared_draw_is_one_value_per_application(material, draw_with):
+    mu = draw_with(material, "shared").initial_mu.reshape(N, 16)
     assert np.all(mu == mu[:, :1])
 
 
-def test_draws_are_normal(material):
-    a = _draw(material, "mcs-100").power_coefficient_per_s.ravel()
+def test_draws_are_normal(material, draw_with):
+    a = draw_with(material, "mcs-100").power_coefficient_per_s.ravel()
     assert stats.normaltest(a).pvalue > 1e-3
 
 
-def test_running_resistance_scatter():
+def test_per_sample_draws_do_not_depend_on_the_other_samples_drawn():
+    """A campaign sample's friction and resistance depend on the seed and its index alone: any
+    split of the indices, in any order, gives the same numbers bit for bit."""
+    scatter = train_scatter(cfg.load("vehicles", "emu_8axle"), cfg.load("setups", "mcs-75-25"))
+    whole, resistance = scatter.draw_for_samples(5, np.arange(1000))
+    for part in (np.arange(3), np.arange(999, 499, -7), np.array([17])):
+        draw, part_resistance = scatter.draw_for_samples(5, part)
+        assert np.array_equal(draw.initial_mu, whole.initial_mu[part])
+        assert np.array_equal(draw.power_coefficient_per_s, whole.power_coefficient_per_s[part])
+        assert np.array_equal(part_resistance, resistance[part])
+    other, other_resistance = scatter.draw_for_samples(6, np.arange(1000))
+    assert not np.any(other.initial_mu == whole.initial_mu) and not np.any(other_resistance == resistance)
+
+
+@pytest.mark.parametrize("per_sample", [False, True], ids=["generator", "per-sample"])
+def test_running_resistance_scatter(per_sample):
     vehicle = cfg.load("vehicles", "emu_8axle")
     rng = np.random.default_rng(3)
     resistance = vehicle.running_resistance
-    scattered = draw_running_resistance(
-        rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N
-    )
+    if per_sample:
+        scattered = train_scatter(vehicle, cfg.load("setups", "mcs-100")).draw_for_samples(3, np.arange(N))[1]
+    else:
+        scattered = draw_running_resistance(
+            rng, resistance.A_N, resistance.A_sigma_N, scatter_partition(cfg.load("setups", "mcs-100")), N
+        )
     assert scattered.mean() == pytest.approx(2500, abs=4 * 1600 / np.sqrt(N))
     assert scattered.std(ddof=1) == pytest.approx(1600, rel=0.04)
     fixed = draw_running_resistance(
@@ -121,7 +152,7 @@ def test_campaign_sizes():
     assert not any(a.load == "max" and a.initial_speed_kmh == 160 for a in apps)
 
 
-def test_same_seed_same_campaign_bit_for_bit_any_worker_count():
+def test_same_seed_same_stops_bit_for_bit_any_executor_and_chunk_size():
     vehicle = cfg.load("vehicles", "emu_8axle")
     apps = [
         TrainApplication(load=load, brake_mode="emergency", actuation=act, initial_speed_kmh=v)
@@ -130,9 +161,9 @@ def test_same_seed_same_campaign_bit_for_bit_any_worker_count():
         for v in (100.0, 140.0)
     ] * 150
     setup = cfg.load("setups", "mcs-75-25")
-    one, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, workers=1)
-    two, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, workers=2)
-    other, _, _ = train_monte_carlo(vehicle, apps, setup, seed=12, workers=1)
+    one, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11)
+    two, _, _ = train_monte_carlo(vehicle, apps, setup, seed=11, executor=LocalExecutor(2), chunk_size=250)
+    other, _, _ = train_monte_carlo(vehicle, apps, setup, seed=12)
     assert np.array_equal(one.stop_distance_m, two.stop_distance_m)
     assert np.array_equal(one.mu_s, two.mu_s)
     assert not np.array_equal(one.stop_distance_m, other.stop_distance_m)
@@ -147,7 +178,7 @@ def test_sixteen_discs_average_independent_scatter():
     rel = {}
     for name in ("shared", "mcs-100", "mcs-75-25"):
         setup = cfg.load("setups", name).model_copy(update={"resistance_scatter": False})
-        summary, _, _ = train_monte_carlo(vehicle, [app] * 300, setup, seed=5, workers=1)
+        summary, _, _ = train_monte_carlo(vehicle, [app] * 300, setup, seed=5)
         rel[name] = summary.mu_s_eff.std(ddof=1) / summary.mu_s_eff.mean()
     assert 3.2 < rel["shared"] / rel["mcs-100"] < 5.0
     assert 0.65 < rel["mcs-75-25"] / rel["shared"] < 0.9
@@ -155,7 +186,7 @@ def test_sixteen_discs_average_independent_scatter():
 
 def test_field_campaign_table_and_summary():
     campaign = cfg.load("campaigns", "field2022").model_copy(update={"repetitions": 3})
-    result = field_campaign(campaign, cfg.load("setups", "mcs-100"), seed=1, workers=2)
+    result = field_campaign(campaign, cfg.load("setups", "mcs-100"), seed=1)
     assert len(result.applications) == 88 * 3
     assert result.applications.stop_time_s.notna().all()
     summary = result.application_summary()

@@ -2,19 +2,23 @@
 (Table 4), in the set-ups DS, MCS-100, MCS-75/25 (spec Section 5), with the statistics of spec
 Section 6 (:mod:`brakegym.statistics`).
 
-All random numbers of a campaign come from one ``numpy.random.Generator`` seeded by the caller and
-are drawn up front in a fixed order, and the stops run in chunks of fixed composition
-(:mod:`.runner`), so the same seed gives the same campaign bit for bit whatever the number of
-worker processes.
+Stop ``i`` of a campaign draws its scatter from the seed and ``i`` alone (counter-based streams,
+:meth:`~brakegym.plants.TrainScatter.draw_for_samples`), and the stops run in chunks of
+consecutive stops on any executor (:mod:`brakegym.execution`), so the same seed gives the same
+campaign bit for bit whatever the executor, the number of workers or the chunk size. A campaign's
+rows stay in memory, or go to Parquet files in a folder, resumable after an interruption.
 
 - :mod:`.dyno`: the dynamometer campaign; :mod:`.field`: train stops and the field campaign;
+- :mod:`.chunks`: chunks, running them, their rows; :mod:`.store`: a campaign's folder;
 - :mod:`.trends`: the paper's trends recomputed; :mod:`.figures`: figures after the paper's.
 """
 
 from .dyno import DynoCampaignResult, dyno_applications, dyno_campaign
 from .field import FieldCampaignResult, field_applications, field_campaign, train_monte_carlo
+from .store import CampaignFolderError
 
 __all__ = [
+    "CampaignFolderError",
     "DynoCampaignResult",
     "FieldCampaignResult",
     "dyno_applications",

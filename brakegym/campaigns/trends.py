@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import config as cfg
 from ..applications import DEFAULT_STEP_S, TrainApplication
+from ..execution import Executor
 from ..statistics import sample_statistics
 from .dyno import dyno_campaign
 from .field import train_monte_carlo
@@ -73,15 +74,19 @@ class Trends:
 
 
 def compute_trends(
-    seed: int = 2022, train_applications: int = 400, step_s: float = DEFAULT_STEP_S, workers: int = 2
+    seed: int = 2022,
+    train_applications: int = 400,
+    step_s: float = DEFAULT_STEP_S,
+    executor: Executor | None = None,
 ) -> Trends:
+    """The trends from campaigns of ``seed`` on ``executor`` (default: this process)."""
     rig = cfg.load("rigs", "dynamometer")
-    ds = dyno_campaign(rig, cfg.load("setups", "ds"), seed, step_s=step_s, workers=workers).applications
+    ds = dyno_campaign(rig, cfg.load("setups", "ds"), seed, step_s=step_s, executor=executor).applications
     by_speed = ds.groupby("v0_kmh")["mu_s"].mean()
     mu_s_by_speed = {float(v): float(m) for v, m in by_speed.items()}
     drop = 100.0 * (by_speed.max() - by_speed.loc[160.0]) / by_speed.max()
 
-    mcs = dyno_campaign(rig, cfg.load("setups", "mcs-100"), seed, step_s=step_s, workers=workers).applications
+    mcs = dyno_campaign(rig, cfg.load("setups", "mcs-100"), seed, step_s=step_s, executor=executor).applications
     rel_std = mcs.groupby(["v0_kmh", "load_case"])["s_m"].agg(lambda s: s.std(ddof=1) / s.mean())
     distance_rel_std = {float(v): 100.0 * float(rel_std.loc[v].mean()) for v in sorted(mcs.v0_kmh.unique())}
 
@@ -92,7 +97,9 @@ def compute_trends(
         setup = cfg.load("setups", setup_name)
         for resistance in (True, False):
             variant = setup.model_copy(update={"resistance_scatter": resistance})
-            summary, _, _ = train_monte_carlo(vehicle, [app] * train_applications, variant, seed, step_s, workers)
+            summary, _, _ = train_monte_carlo(
+                vehicle, [app] * train_applications, variant, seed, step_s, executor=executor
+            )
             label = f"{setup_name}{'' if resistance else ' (no resistance scatter)'}"
             mu_eff[label] = 100.0 * sample_statistics(summary.mu_s_eff).relative_std
     return Trends(

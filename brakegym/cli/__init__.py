@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 from .. import __version__
 from .. import config as cfg
+from ..execution.base import TaskFailed
 from . import controllers, identify, recordings, safety, simulation
 from .common import EXIT_USAGE, UsageError
 
@@ -64,6 +65,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.func(args)
     except (cfg.ConfigError, UsageError) as exc:
         print(f"brakegym {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except TaskFailed as exc:
+        # A task that ran elsewhere (a worker process, a cluster) failed on bad input: its message,
+        # as if it had run here. Anything else is a crash, with the traceback where it ran.
+        if not isinstance(exc.error, (cfg.ConfigError, ValueError)):
+            raise
+        print(f"brakegym {args.command}: error: {exc.summary}", file=sys.stderr)
         return EXIT_USAGE
     except ValueError as exc:
         # Invalid combinations found while building the run (a step that does not divide a dead

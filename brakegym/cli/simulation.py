@@ -17,8 +17,18 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S
-from .common import finite_non_negative, finite_positive, non_negative_int, positive_int, progress, write_json
+from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_STEP_S
+from .common import (
+    UsageError,
+    add_execution_options,
+    executor_from_arguments,
+    finite_non_negative,
+    finite_positive,
+    non_negative_int,
+    positive_int,
+    progress,
+    write_json,
+)
 
 # ------------------------------------------------------------------------------------------------
 
@@ -70,9 +80,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if args.setup == "ds":
         summary = train_stops(vehicle, [app], step_s=args.step)
     else:
-        summary, _, _ = train_monte_carlo(
-            vehicle, [app], cfg.load("setups", args.setup), args.seed, args.step, workers=1
-        )
+        summary, _, _ = train_monte_carlo(vehicle, [app], cfg.load("setups", args.setup), args.seed, args.step)
     result = {
         "vehicle": vehicle.name,
         "load": args.load,
@@ -98,89 +106,121 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_mcs(args: argparse.Namespace) -> int:
-    from .. import campaigns
-
     setup = cfg.load("setups", args.setup)
-    if args.campaign == "dyno":
-        rig = cfg.load("rigs", cfg.load("campaigns", "dyno2022").rig)
-        total = len(campaigns.dyno_applications(rig))
-        with progress(total, "dyno campaign") as bar:
-            result = campaigns.dyno_campaign(
-                rig, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update
-            )
-        summary = result.load_case_summary()
-        print(f"dynamometer campaign, {setup.name}, seed {args.seed}: {len(result.applications)} applications")
-        print(f"{'load case':<13} {'n':>4} {'mu_s mean':>9} {'mu_s std':>9} {'s mean [m]':>10} {'s std [m]':>9}")
-        for _, row in summary.iterrows():
-            print(
-                f"{row.load_case:<13} {row.n:4d} {row.mu_s_mean:9.4f} {row.mu_s_std:9.4f} "
-                f"{row.s_m_mean:10.1f} {row.s_m_std:9.2f}"
-            )
-        payload = {
-            "campaign": "dyno",
-            "setup": setup.name,
-            "seed": args.seed,
-            "step_s": args.step,
-            "applications": len(result.applications),
-            "load_cases": summary.to_dict(orient="records"),
-            "specimens": result.specimen_summary().to_dict(orient="records"),
-        }
-        if args.figures:
-            from ..campaigns import figures  # matplotlib only where figures are asked for
-
-            paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [
-                figures.mu_trend_figure(Path(args.figures))
-            ]
-            print("figures: " + ", ".join(str(p) for p in paths))
-        if args.csv:
-            result.applications.to_csv(args.csv, index=False)
-    else:
-        campaign = cfg.load("campaigns", "field2022")
-        total = len(campaigns.field_applications(campaign)) * campaign.repetitions
-        with progress(total, "field campaign") as bar:
-            result = campaigns.field_campaign(
-                campaign, setup, args.seed, step_s=args.step, workers=args.workers, progress=bar.update
-            )
-        summary = result.application_summary()
-        table = result.applications
-        print(
-            f"field campaign {campaign.name}, {setup.name}, seed {args.seed}: {summary.shape[0]} field applications "
-            f"x {campaign.repetitions} = {len(table)} train stops"
+    if args.campaign == "dyno" and args.chunk_size is not None:
+        raise UsageError(
+            "--chunk-size is for the field campaign; the dynamometer campaign runs one chunk per load case"
         )
-        print(
-            f"{'mode':<10} {'v0':>4} {'mu_s,eff mean':>13} {'rel std %':>9} {'braking dist. [m]':>18} {'rel std %':>9}"
-        )
-        for (mode, v0), group in table.groupby(["brake_mode", "v0_kmh"]):
-            mu, dist = group.mu_s_eff, group.braking_distance_m
-            print(
-                f"{mode:<10} {v0:4.0f} {mu.mean():13.4f} {100 * mu.std() / mu.mean():9.2f} "
-                f"{dist.mean():18.1f} {100 * dist.std() / dist.mean():9.2f}"
-            )
-        payload = {
-            "campaign": "field",
-            "setup": setup.name,
-            "seed": args.seed,
-            "step_s": args.step,
-            "applications": len(table),
-            "field_applications": summary.to_dict(orient="records"),
-        }
-        if args.figures:
-            from ..campaigns import figures
-
-            paths = figures.field_campaign_figures(result, Path(args.figures))
-            print("figures: " + ", ".join(str(p) for p in paths))
-        if args.csv:
-            table.to_csv(args.csv, index=False)
+    if args.campaign == "dyno" and args.repetitions is not None:
+        raise UsageError("--repetitions is for the field campaign; the dynamometer's applications are in its rig")
+    with executor_from_arguments(args) as executor:
+        if args.campaign == "dyno":
+            payload = _dyno_mcs(args, setup, executor)
+        else:
+            payload = _field_mcs(args, setup, executor)
     write_json(args.json, payload)
     return 0
+
+
+def _dyno_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> dict[str, object]:
+    from .. import campaigns
+
+    rig = cfg.load("rigs", cfg.load("campaigns", "dyno2022").rig)
+    total = len(campaigns.dyno_applications(rig))
+    with progress(total, "dyno campaign") as bar:
+        result = campaigns.dyno_campaign(
+            rig,
+            setup,
+            args.seed,
+            step_s=args.step,
+            executor=executor,
+            progress=bar.update,
+            out=args.out,
+            resume=args.resume,
+        )
+    summary = result.load_case_summary()
+    print(f"dynamometer campaign, {setup.name}, seed {args.seed}: {len(result.applications)} applications")
+    print(f"{'load case':<13} {'n':>4} {'mu_s mean':>9} {'mu_s std':>9} {'s mean [m]':>10} {'s std [m]':>9}")
+    for _, row in summary.iterrows():
+        print(
+            f"{row.load_case:<13} {row.n:4d} {row.mu_s_mean:9.4f} {row.mu_s_std:9.4f} "
+            f"{row.s_m_mean:10.1f} {row.s_m_std:9.2f}"
+        )
+    if args.figures:
+        from ..campaigns import figures  # matplotlib only where figures are asked for
+
+        paths = figures.dyno_campaign_figures(result, Path(args.figures)) + [
+            figures.mu_trend_figure(Path(args.figures))
+        ]
+        print("figures: " + ", ".join(str(p) for p in paths))
+    if args.csv:
+        result.applications.to_csv(args.csv, index=False)
+    return {
+        "campaign": "dyno",
+        "setup": setup.name,
+        "seed": args.seed,
+        "step_s": args.step,
+        "applications": len(result.applications),
+        "load_cases": summary.to_dict(orient="records"),
+        "specimens": result.specimen_summary().to_dict(orient="records"),
+    }
+
+
+def _field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> dict[str, object]:
+    from .. import campaigns
+
+    campaign = cfg.load("campaigns", "field2022")
+    if args.repetitions is not None:
+        campaign = campaign.model_copy(update={"repetitions": args.repetitions})
+    total = len(campaigns.field_applications(campaign)) * campaign.repetitions
+    with progress(total, "field campaign") as bar:
+        result = campaigns.field_campaign(
+            campaign,
+            setup,
+            args.seed,
+            step_s=args.step,
+            executor=executor,
+            progress=bar.update,
+            chunk_size=args.chunk_size or DEFAULT_CHUNK_STOPS,
+            out=args.out,
+            resume=args.resume,
+        )
+    summary = result.application_summary()
+    print(
+        f"field campaign {campaign.name}, {setup.name}, seed {args.seed}: {summary.shape[0]} field applications "
+        f"x {campaign.repetitions} = {result.n_stops} train stops"
+    )
+    print(f"{'mode':<10} {'v0':>4} {'mu_s,eff mean':>13} {'rel std %':>9} {'braking dist. [m]':>18} {'rel std %':>9}")
+    for _, row in result.mode_speed_summary(summary).iterrows():
+        mu, distance = row.mu_s_eff_mean, row.braking_distance_m_mean
+        print(
+            f"{row.brake_mode:<10} {row.v0_kmh:4.0f} {mu:13.4f} {100 * row.mu_s_eff_std / mu:9.2f} "
+            f"{distance:18.1f} {100 * row.braking_distance_m_std / distance:9.2f}"
+        )
+    if args.figures:
+        from ..campaigns import figures
+
+        paths = figures.field_campaign_figures(result, Path(args.figures))
+        print("figures: " + ", ".join(str(p) for p in paths))
+    if args.csv:
+        result.write_csv(args.csv)
+    return {
+        "campaign": "field",
+        "setup": setup.name,
+        "seed": args.seed,
+        "step_s": args.step,
+        "applications": result.n_stops,
+        "field_applications": summary.to_dict(orient="records"),
+    }
 
 
 def cmd_trends(args: argparse.Namespace) -> int:
     from ..campaigns.trends import compute_trends
 
-    trends = compute_trends(
-        seed=args.seed, train_applications=args.applications, step_s=args.step, workers=args.workers
-    )
+    with executor_from_arguments(args) as executor:
+        trends = compute_trends(
+            seed=args.seed, train_applications=args.applications, step_s=args.step, executor=executor
+        )
     print(trends.table())
     write_json(args.json, trends.as_dict())
     return 0
@@ -225,11 +265,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _recorded_monte_carlo(vehicle, app, setup, seed, runs, step_s):
-    """Monte-Carlo stops with trajectories (the demo wants the curves, not only summaries)."""
+    """Monte-Carlo stops with trajectories (the demo wants the curves, not only summaries), stop
+    ``i`` with sample ``i``'s scatter of the seed, as in a campaign."""
     from ..applications import train_stops
     from ..plants import train_scatter
 
-    draw, resistance = train_scatter(vehicle, setup).draw(np.random.default_rng(seed), runs)
+    draw, resistance = train_scatter(vehicle, setup).draw_for_samples(seed, np.arange(runs))
     summary = train_stops(vehicle, [app] * runs, draw, resistance, step_s=step_s, record_every=1)
     return summary, draw, resistance
 
@@ -282,14 +323,19 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", help="write the summary as JSON")
     p.add_argument("--csv", help="write every simulated application as CSV")
     p.add_argument("--figures", help="folder for PNG figures")
-    p.add_argument("--workers", type=positive_int("--workers"), default=2, help="worker processes (default 2)")
+    p.add_argument(
+        "--repetitions",
+        type=positive_int("--repetitions"),
+        help="field campaign: stops per field application (default: the campaign's, 50)",
+    )
     p.add_argument("--step", **step)
+    add_execution_options(p)
     p.set_defaults(func=cmd_mcs)
 
     p = sub.add_parser("trends", help="recompute the paper's trends")
     p.add_argument("--seed", type=non_negative_int("--seed"), default=2022)
     p.add_argument("--applications", type=positive_int("--applications"), default=400, help="train stops per set-up")
-    p.add_argument("--workers", type=positive_int("--workers"), default=2)
     p.add_argument("--json", help="write the trends as JSON")
     p.add_argument("--step", **step)
+    add_execution_options(p, chunked_output=False)
     p.set_defaults(func=cmd_trends)

@@ -21,6 +21,7 @@ from .scatter import (
     draw_friction,
     draw_running_resistance,
     friction_from_normals,
+    running_resistance_from_normals,
 )
 from .thermal import CooledSurface, DiscThermalModel, HeatFlows
 
@@ -39,5 +40,6 @@ __all__ = [
     "draw_friction",
     "draw_running_resistance",
     "friction_from_normals",
+    "running_resistance_from_normals",
     "sliding_speed_mps",
 ]

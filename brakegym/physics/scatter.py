@@ -124,7 +124,14 @@ def draw_running_resistance(
 
     As in the spec, the draw is not truncated: with sigma 1600 N around 2500 N about 6 % of the
     draws are negative (a net push), which the paper's Gaussian allows."""
-    draw = rng.standard_normal(n_applications)
+    return running_resistance_from_normals(A_N, A_sigma_N, partition, rng.standard_normal(n_applications))
+
+
+def running_resistance_from_normals(
+    A_N: float, A_sigma_N: float, partition: ScatterPartition, normals: np.ndarray
+) -> np.ndarray:
+    """A of F_R per application given one standard normal each (``normals``, (applications,)):
+    ``A_N + A_sigma_N * normal`` where the set-up scatters it, else ``A_N``."""
     if not partition.resistance_scatter:
-        return np.full(n_applications, A_N)
-    return A_N + A_sigma_N * draw
+        return np.full(len(normals), A_N)
+    return A_N + A_sigma_N * normals

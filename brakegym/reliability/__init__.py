@@ -30,14 +30,33 @@ subset simulation's level 0, streams derived from the seed (:func:`derived_seed`
 Markov-chain proposals (stream 1) and the importance-sampling runs (streams 2 and 3; the
 components of :func:`mixture_tail` get 4 and 5). The same seed gives the same estimate bit for bit
 whatever ``batch_size`` is (for a response that treats rows independently).
+
+The estimators are imported on first use of their names: they need :mod:`scipy.stats` (about
+0.8 s to import), which the campaigns, drawing from :mod:`.streams` alone, should not pay for.
 """
 
-from .importance import importance_sampling
-from .mixture import mixture_tail
-from .montecarlo import brute_force
-from .results import TailEstimate, WeightedTail
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .streams import derived_seed, standard_normals, uniforms
-from .subset import subset_simulation
+
+if TYPE_CHECKING:
+    from .importance import importance_sampling
+    from .mixture import mixture_tail
+    from .montecarlo import brute_force
+    from .results import TailEstimate, WeightedTail
+    from .subset import subset_simulation
+
+_LAZY = {
+    "TailEstimate": "results",
+    "WeightedTail": "results",
+    "brute_force": "montecarlo",
+    "importance_sampling": "importance",
+    "subset_simulation": "subset",
+    "mixture_tail": "mixture",
+}
 
 __all__ = [
     "TailEstimate",
@@ -50,3 +69,13 @@ __all__ = [
     "subset_simulation",
     "uniforms",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
