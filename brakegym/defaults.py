@@ -9,3 +9,9 @@ DEFAULT_STEP_S = 0.2
 # above the ~100 ms that makes a chunk's overhead (pickling, scheduling, a Parquet file) negligible,
 # and small enough that the paper's 4400-stop field campaign makes 5 chunks to share out.
 DEFAULT_CHUNK_STOPS = 1000
+
+# Stops per task of a rare-event run on worker processes or a cluster (brakegym tail, kdry): about
+# 100 ms of one core, the least that keeps a task's overhead small; smaller than a campaign's
+# chunk because an estimator's batches are small (a subset simulation's step evaluates one row
+# per chain, a few hundred).
+DEFAULT_TAIL_CHUNK_STOPS = 250

@@ -171,6 +171,11 @@ def test_tail_json(tmp_path, capsys):
     assert "exceeded with probability 0.001" in capsys.readouterr().out
 
 
+def _kdry_values(path: Path) -> list:
+    bands = json.loads(path.read_text())["bands"]
+    return [[(level["value"], level["ci95"]) for level in band["kdry"].values()] for band in bands]
+
+
 def test_kdry_json_figure_and_osrd_export(tmp_path, capsys):
     """``brakegym kdry`` on a user's safety case (a copy of the shipped one with a lower maximum
     speed, for a short test)."""
@@ -194,6 +199,10 @@ def test_kdry_json_figure_and_osrd_export(tmp_path, capsys):
     assert read_etcs_brake_params(out / "o.json")["k_dry"]["values"] == [b["kdry"]["1"]["value"] for b in data["bands"]]
     assert (out / "k.png").stat().st_size > 0
     assert "M_NVEBCL 1 (90 %)" in capsys.readouterr().out
+    # Worker processes find the user's safety case too, and give the same table.
+    local = ["--executor", "local", "--workers", "2", "--chunk-size", "100", "--json", str(out / "local.json")]
+    assert main([*args[:-4], *local]) == 0
+    assert _kdry_values(out / "local.json") == _kdry_values(out / "k.json")
     # An export at a level not computed is refused before any simulation.
     assert main([*args[:-4], "--levels", "0", "--osrd", str(out / "x.json")]) == 2
     assert "include it in --levels" in capsys.readouterr().err

@@ -11,6 +11,7 @@ from scipy import integrate, special, stats
 
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication, train_stops
+from brakegym.execution import DaskExecutor, LocalExecutor
 from brakegym.physics import BrakeCylinder, CaliperLaw
 from brakegym.safety import BrakingModel, InputLayout
 from brakegym.safety.conventional import conventional_stop, equivalent_response_time_s, time_to_force_share_s
@@ -307,6 +308,35 @@ def test_brute_force_agrees_with_subset_and_importance_sampling():
         assert max(low, brute_low) <= min(high, brute_high), (method, results[method].threshold_ci95)
 
 
+def _estimate_numbers(estimate) -> tuple:
+    return (
+        estimate.threshold,
+        estimate.threshold_ci95,
+        estimate.probability,
+        estimate.probability_ci95,
+        estimate.model_evaluations,
+    )
+
+
+@pytest.mark.parametrize("method", ["brute", "is"])
+def test_tail_is_the_same_bit_for_bit_on_any_executor(method):
+    """Worker processes and a local Dask cluster of two workers, in tasks of 37 stops, give the
+    estimate of this process's run bit for bit."""
+    case = cfg.load("safety_cases", CASE)
+    settings = {"samples": 2000} if method == "brute" else {"n_per_level": 300}
+
+    def tail(executor=None):
+        return braking_distance_tail(
+            case, "empty", 60.0, probability=2e-2, method=method, seed=3, executor=executor, chunk_stops=37, **settings
+        ).estimate
+
+    reference = _estimate_numbers(tail())
+    with LocalExecutor(2) as local:
+        assert _estimate_numbers(tail(local)) == reference
+    with DaskExecutor(workers=2) as dask:
+        assert _estimate_numbers(tail(dask)) == reference
+
+
 def test_tail_input_errors():
     case = cfg.load("safety_cases", CASE)
     with pytest.raises(ValueError, match="exactly one"):
@@ -397,6 +427,15 @@ def test_kdry_of_a_lognormal_mass_is_the_deceleration_of_the_quantile_mass():
         half_width = 0.5 * (table.kdry_ci95[:, column, 1] - table.kdry_ci95[:, column, 0])
         assert np.all(np.abs(table.kdry[:, column] - exact) <= 3 * half_width), (level, table.kdry[:, column], exact)
         np.testing.assert_allclose(table.kdry[:, column], exact, rtol=2e-3)
+
+
+def test_kdry_is_the_same_bit_for_bit_on_worker_processes():
+    case = _slow_train(cfg.load("safety_cases", CASE))
+    here = kdry_table(case, "empty", method="is", seed=2, levels=(0, 2), n_per_level=300)
+    with LocalExecutor(2) as local:
+        there = kdry_table(case, "empty", method="is", seed=2, levels=(0, 2), n_per_level=300, executor=local)
+    assert np.array_equal(here.kdry, there.kdry) and np.array_equal(here.kdry_ci95, there.kdry_ci95)
+    assert here.model_evaluations == there.model_evaluations
 
 
 def test_kdry_falls_with_the_confidence_level_and_the_export_reads_back(tmp_path):

@@ -16,8 +16,16 @@ import argparse
 import math
 
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S
-from .common import UsageError, finite_positive, non_negative_int, positive_int, write_json
+from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS
+from .common import (
+    UsageError,
+    add_execution_options,
+    executor_from_arguments,
+    finite_positive,
+    non_negative_int,
+    positive_int,
+    write_json,
+)
 
 METHODS = ("subset", "is", "brute")
 
@@ -50,18 +58,21 @@ def cmd_tail(args: argparse.Namespace) -> int:
         raise UsageError("--n-per-level is for subset and is; brute force takes --samples")
     if args.method != "brute" and args.samples is not None:
         raise UsageError("--samples is brute force's sample size; subset and is take --n-per-level")
-    result = braking_distance_tail(
-        case,
-        args.load,
-        args.v0,
-        probability=args.probability,
-        distance_m=args.distance,
-        method=args.method,
-        seed=args.seed,
-        step_s=args.step,
-        samples=args.samples,
-        **settings,
-    )
+    with executor_from_arguments(args) as executor:
+        result = braking_distance_tail(
+            case,
+            args.load,
+            args.v0,
+            probability=args.probability,
+            distance_m=args.distance,
+            method=args.method,
+            seed=args.seed,
+            step_s=args.step,
+            samples=args.samples,
+            executor=executor,
+            chunk_stops=args.chunk_size,
+            **settings,
+        )
     print(report(result))
     write_json(args.json, result.as_dict())
     return 0
@@ -124,12 +135,21 @@ def cmd_kdry(args: argparse.Namespace) -> int:
         )
     settings = {} if args.n_per_level is None else {"n_per_level": args.n_per_level}
     tables = []
-    for load in args.load:
-        table = kdry_table(
-            case, load, method=args.method, seed=args.seed, levels=tuple(args.levels), step_s=args.step, **settings
-        )
-        print(kdry_report(table))
-        tables.append(table)
+    with executor_from_arguments(args) as executor:
+        for load in args.load:
+            table = kdry_table(
+                case,
+                load,
+                method=args.method,
+                seed=args.seed,
+                levels=tuple(args.levels),
+                step_s=args.step,
+                executor=executor,
+                chunk_stops=args.chunk_size,
+                **settings,
+            )
+            print(kdry_report(table))
+            tables.append(table)
     if args.figure:
         from ..safety.figures import kdry_figure  # matplotlib only where a figure is asked for
 
@@ -219,6 +239,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         help=f"integration step in s (default {DEFAULT_STEP_S})",
     )
     p.add_argument("--json", help="write the result as JSON")
+    _add_execution_options(p)
     p.set_defaults(func=cmd_tail)
 
     p = sub.add_parser(
@@ -246,4 +267,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", help="write the tables as JSON")
     p.add_argument("--figure", help="write the deceleration figure (PNG)")
     p.add_argument("--osrd", help="write OSRD's etcs_brake_params (JSON; one file per load, suffixed by it)")
+    _add_execution_options(p)
     p.set_defaults(func=cmd_kdry)
+
+
+def _add_execution_options(parser: argparse.ArgumentParser) -> None:
+    add_execution_options(parser, chunked_output=False)
+    parser.add_argument(
+        "--chunk-size",
+        type=positive_int("--chunk-size"),
+        default=DEFAULT_TAIL_CHUNK_STOPS,
+        help=f"stops per task of the estimator's batches (default {DEFAULT_TAIL_CHUNK_STOPS}); the results do "
+        "not depend on it",
+    )

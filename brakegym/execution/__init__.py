@@ -15,6 +15,8 @@ carries its seed and its stops' indices, see :mod:`brakegym.campaigns.chunks`).
 - :mod:`.dask_cluster`: :class:`~.dask_cluster.DaskExecutor`, a Dask distributed cluster: an
   existing scheduler's address, or a local cluster of N worker processes (the optional extra
   ``dask``: ``pip install 'brakegym[dask]'``).
+- :mod:`.rows`: :class:`~.rows.RowsOnExecutor`, a function of rows (a batch of stops) evaluated on
+  an executor in chunks of rows, for the rare-event estimators.
 - :mod:`.options`: :func:`~.options.executor_from_options`, an executor from the command line's
   ``--executor``, ``--workers`` and ``--dask-address``.
 
@@ -25,6 +27,7 @@ from .base import Executor, ExecutorUnavailable, TaskFailed
 from .dask_cluster import DaskExecutor
 from .local import InlineExecutor, LocalExecutor
 from .options import EXECUTOR_KINDS, available_cores, executor_from_options
+from .rows import RowsOnExecutor
 
 __all__ = [
     "EXECUTOR_KINDS",
@@ -33,6 +36,7 @@ __all__ = [
     "ExecutorUnavailable",
     "InlineExecutor",
     "LocalExecutor",
+    "RowsOnExecutor",
     "TaskFailed",
     "available_cores",
     "executor_from_options",

@@ -36,10 +36,12 @@ from typing import Any
 import numpy as np
 
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S
+from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS
+from ..execution import Executor
 from ..reliability import TailEstimate, derived_seed, mixture_tail
 from .conventional import conventional_stop
 from .model import BrakingModel
+from .tail import on_executor
 
 CONFIDENCE_LEVELS = tuple(range(10))  # M_NVEBCL
 
@@ -147,12 +149,15 @@ def kdry_table(
     seed: int = 0,
     levels: tuple[int, ...] = CONFIDENCE_LEVELS,
     step_s: float = DEFAULT_STEP_S,
+    executor: Executor | None = None,
+    chunk_stops: int = DEFAULT_TAIL_CHUNK_STOPS,
     **settings: Any,
 ) -> KdryTable:
     """Kdry_rst of ``case``'s train with ``load`` for every speed band of its ETCS model and every
     confidence level of ``levels``, by ``method`` (``"subset"`` or ``"is"``) with ``seed``;
     ``settings`` go to the estimator. Each band and level has its own random stream, derived from
-    ``seed``."""
+    ``seed``. The stops run in this process, or on ``executor`` in tasks of ``chunk_stops`` stops,
+    with the same result bit for bit."""
     start = time.perf_counter()
     if method not in ("subset", "is"):
         raise ValueError(f"method {method!r}: Kdry needs a rare-event estimator, 'subset' or 'is'")
@@ -168,7 +173,9 @@ def kdry_table(
     nominal, build_up = nominal_band_decelerations(model)
     estimates = []
     for band in range(len(edges) - 1):
-        response = BandDecelerationShortfall(model, edges, build_up, band)
+        response, band_settings = on_executor(
+            BandDecelerationShortfall(model, edges, build_up, band), executor, chunk_stops, settings
+        )
         strata = model.strata(response)
         estimates.append(
             tuple(
@@ -178,7 +185,7 @@ def kdry_table(
                     derived_seed(seed, band, level),
                     method,
                     probability=shortfall_probability(level),
-                    **settings,
+                    **band_settings,
                 )
                 for level in levels
             )

@@ -12,11 +12,15 @@ the other two but the simulation.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S
+from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS
+from ..execution import Executor, RowsOnExecutor
 from ..reliability import TailEstimate, brute_force, mixture_tail
 from .conventional import ConventionalStop, conventional_stop
 from .model import BrakingModel
@@ -73,12 +77,16 @@ def braking_distance_tail(
     seed: int = 0,
     step_s: float = DEFAULT_STEP_S,
     samples: int | None = None,
+    executor: Executor | None = None,
+    chunk_stops: int = DEFAULT_TAIL_CHUNK_STOPS,
     **settings: Any,
 ) -> BrakingTail:
     """The braking distance exceeded with ``probability``, or the probability of exceeding
     ``distance_m`` (exactly one), with 95 % intervals, by ``method`` (``"subset"``, ``"is"`` or
     ``"brute"``). ``samples`` is brute force's sample size (default: 100 expected exceedances of
-    ``probability``); ``settings`` go to the estimator (``n_per_level``, ``batch_size``, ...)."""
+    ``probability``); ``settings`` go to the estimator (``n_per_level``, ``batch_size``, ...).
+    The stops run in this process, or on ``executor`` in tasks of ``chunk_stops`` stops, with the
+    same result bit for bit."""
     if method not in METHODS:
         raise ValueError(f"method {method!r}: choose one of {list(METHODS)}")
     if (probability is None) == (distance_m is None):
@@ -88,9 +96,10 @@ def braking_distance_tail(
     if distance_m is not None and not (math.isfinite(distance_m) and distance_m > 0):
         raise ValueError(f"distance {distance_m} m: must be a positive finite number")
     model = BrakingModel(case, load, initial_speed_kmh, step_s)
+    response, settings = on_executor(model.braking_distance_m, executor, chunk_stops, settings)
     if method == "brute":
         estimate = brute_force(
-            model,
+            response,
             model.dims,
             seed,
             samples or brute_force_samples(probability),
@@ -102,7 +111,7 @@ def braking_distance_tail(
         if samples is not None:
             raise ValueError("samples is brute force's sample size; subset and is take n_per_level")
         estimate = mixture_tail(
-            model.strata(), model.dims, seed, method, probability=probability, threshold=distance_m, **settings
+            model.strata(response), model.dims, seed, method, probability=probability, threshold=distance_m, **settings
         )
     return BrakingTail(
         case=case.name,
@@ -114,6 +123,18 @@ def braking_distance_tail(
         nominal_braking_distance_m=model.nominal_braking_distance_m(),
         conventional=conventional_stop(model),
     )
+
+
+def on_executor(
+    response: Callable[..., np.ndarray], executor: Executor | None, chunk_stops: int, settings: dict[str, Any]
+) -> tuple[Callable[..., np.ndarray], dict[str, Any]]:
+    """``response`` evaluated on ``executor`` in tasks of ``chunk_stops`` stops (as it is without
+    one), and the estimator's ``settings`` with a batch size that gives every worker a few tasks at
+    once, unless they set one."""
+    if executor is None:
+        return response, settings
+    distributed = RowsOnExecutor(response, executor, chunk_stops)
+    return distributed, {"batch_size": distributed.batch_rows(), **settings}
 
 
 def brute_force_samples(probability: float | None) -> int:
