@@ -32,8 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from solve_ivp_baseline import solve_ivp_stop  # noqa: E402
 
 from brakegym import config as cfg  # noqa: E402
-from brakegym.applications import DEFAULT_STEP_S  # noqa: E402
 from brakegym.campaigns import field_applications, field_campaign  # noqa: E402
+from brakegym.defaults import DEFAULT_STEP_S  # noqa: E402
 from brakegym.execution import DaskExecutor, InlineExecutor, LocalExecutor  # noqa: E402
 from brakegym.plants import train_scatter  # noqa: E402
 from brakegym.simulator import kernel  # noqa: E402

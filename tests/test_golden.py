@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 
 from brakegym import config as cfg
-from brakegym.applications import DEFAULT_STEP_S, TrainApplication, dyno_stops, train_stops
+from brakegym.applications import TrainApplication, dyno_stops, train_stops
+from brakegym.defaults import DEFAULT_STEP_S
 
 REL = 0.005
 KELVIN_TOL = 2.0

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, Trajectory, dyno_stops
+from ..applications import Trajectory, dyno_stops
+from ..defaults import DEFAULT_STEP_S
 from ..execution import Executor
 from ..execution.base import Progress
 from ..plants import friction_for_samples, scatter_partition, stochastic_friction

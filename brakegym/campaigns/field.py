@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, StopSummary, TrainApplication, train_stops
-from ..defaults import DEFAULT_CHUNK_STOPS
+from ..applications import StopSummary, TrainApplication, train_stops
+from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_STEP_S
 from ..execution import Executor, InlineExecutor
 from ..execution.base import Progress
 from ..physics import FrictionDraw

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, TrainApplication
+from ..applications import TrainApplication
+from ..defaults import DEFAULT_STEP_S
 from ..execution import Executor
 from ..statistics import sample_statistics
 from .dyno import dyno_campaign

@@ -26,7 +26,8 @@ import numpy as np
 import pandas as pd
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, dyno_stops
+from ..applications import dyno_stops
+from ..defaults import DEFAULT_STEP_S
 from ..physics import DiscThermalModel, FrictionDraw, FrictionLaw
 from ..plants import dynamometer_plant, friction_law, thermal_model
 from .parameters import ParameterSpace

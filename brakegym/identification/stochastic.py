@@ -51,7 +51,8 @@ import pandas as pd
 from scipy import optimize
 
 from .. import config as cfg
-from ..applications import DEFAULT_STEP_S, TrainApplication, dyno_stops, train_stops
+from ..applications import TrainApplication, dyno_stops, train_stops
+from ..defaults import DEFAULT_STEP_S
 from ..observables import DYNO_OBSERVABLES, TRAIN_OBSERVABLES
 from ..physics import FrictionDraw
 from .parameters import IdentificationConfig, load_identification_config
