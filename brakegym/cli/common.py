@@ -21,7 +21,7 @@ from ..execution.options import EXECUTOR_KINDS
 EXIT_USAGE = 2
 
 # In this process, the kernel on every core: on one machine as fast as worker processes
-# (benchmarks/bench_campaign.py, docs/campaigns-at-scale.md), without their start-up and
+# (benchmarks/bench_campaign.py, docs/speed.md), without their start-up and
 # pickling, and on any platform.
 DEFAULT_EXECUTOR = "inline"
 

@@ -24,6 +24,7 @@ from .common import (
     finite_positive,
     non_negative_int,
     positive_int,
+    progress,
     write_json,
 )
 
@@ -124,7 +125,7 @@ def report(result) -> str:
 
 
 def cmd_kdry(args: argparse.Namespace) -> int:
-    from ..safety.etcs import kdry_table
+    from ..safety.etcs import kdry_table, speed_band_edges_kmh
     from ..safety.osrd import export_kdry_table, write_etcs_brake_params
 
     case = safety_case_for(args.vehicle, args.safety_case)
@@ -137,17 +138,20 @@ def cmd_kdry(args: argparse.Namespace) -> int:
     tables = []
     with executor_from_arguments(args) as executor:
         for load in args.load:
-            table = kdry_table(
-                case,
-                load,
-                method=args.method,
-                seed=args.seed,
-                levels=tuple(args.levels),
-                step_s=args.step,
-                executor=executor,
-                chunk_stops=args.chunk_size,
-                **settings,
-            )
+            bar = progress(len(args.levels) * (len(speed_band_edges_kmh(case)) - 1), f"Kdry {load}", "estimate")
+            with bar:
+                table = kdry_table(
+                    case,
+                    load,
+                    method=args.method,
+                    seed=args.seed,
+                    levels=tuple(args.levels),
+                    step_s=args.step,
+                    executor=executor,
+                    chunk_stops=args.chunk_size,
+                    progress=bar.update,
+                    **settings,
+                )
             print(kdry_report(table))
             tables.append(table)
     if args.figure:

@@ -30,6 +30,7 @@ traction cut-off time) comes from the safety case's ``etcs.not_modelled`` with i
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -151,13 +152,14 @@ def kdry_table(
     step_s: float = DEFAULT_STEP_S,
     executor: Executor | None = None,
     chunk_stops: int = DEFAULT_TAIL_CHUNK_STOPS,
+    progress: Callable[[int], None] | None = None,
     **settings: Any,
 ) -> KdryTable:
     """Kdry_rst of ``case``'s train with ``load`` for every speed band of its ETCS model and every
     confidence level of ``levels``, by ``method`` (``"subset"`` or ``"is"``) with ``seed``;
     ``settings`` go to the estimator. Each band and level has its own random stream, derived from
     ``seed``. The stops run in this process, or on ``executor`` in tasks of ``chunk_stops`` stops,
-    with the same result bit for bit."""
+    with the same result bit for bit. ``progress(1)`` is called as each band and level is done."""
     start = time.perf_counter()
     if method not in ("subset", "is"):
         raise ValueError(f"method {method!r}: Kdry needs a rare-event estimator, 'subset' or 'is'")
@@ -177,8 +179,9 @@ def kdry_table(
             BandDecelerationShortfall(model, edges, build_up, band), executor, chunk_stops, settings
         )
         strata = model.strata(response)
-        estimates.append(
-            tuple(
+        row = []
+        for level in levels:
+            row.append(
                 mixture_tail(
                     strata,
                     model.dims,
@@ -187,9 +190,10 @@ def kdry_table(
                     probability=shortfall_probability(level),
                     **band_settings,
                 )
-                for level in levels
             )
-        )
+            if progress is not None:
+                progress(1)
+        estimates.append(tuple(row))
     # The quantile of -a is minus the deceleration's lower quantile; its interval turns round.
     kdry = np.array([[-estimate.threshold for estimate in row] for row in estimates]) / nominal[:, None]
     interval = np.array([[[-high, -low] for low, high in (e.threshold_ci95 for e in row)] for row in estimates])
