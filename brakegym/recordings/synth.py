@@ -64,7 +64,7 @@ from ..applications import CommandSchedule
 from ..effects import EFFECTS, Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
 from ..physics import BrakeCylinder, RunningResistanceLaw
 from ..plants import brake_cylinder, train_plant, train_scatter
-from ..simulator import BatchConditions, CommandedPressure, Plant
+from ..simulator import BatchConditions, CommandedPressure, Plant, Simulator
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .chain import PRESSURES, MeasurementChain
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
@@ -72,6 +72,7 @@ from .format import Recording, write_recording
 from .logger import log_run
 from .measurement import GridTrajectory, MeasurementModel
 from .metadata import RecordingMetadata
+from .model_form import DrawnModelForm, ModelForm, draw_model_form, key_entry, truth_row_entry
 from .replay import simulate_grid
 
 VEHICLE = "emu_8axle"
@@ -277,6 +278,7 @@ def synthesize(
     noise_scale: float = 1.0,
     scatter_setup: str = SCATTER_SETUP,
     measurement_chain: MeasurementChain | None = None,
+    model_form: ModelForm | None = None,
 ) -> SynthResult:
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
@@ -285,11 +287,15 @@ def synthesize(
     larger for robustness); ``scatter_setup`` names the friction scatter set-up (``ds``: none,
     and no running-resistance scatter either); ``measurement_chain`` logs each channel through
     that chain (:mod:`.logger`) instead of the clean 10 Hz table (its noise levels times
-    ``noise_scale``; offsets, quantisation and dropouts as configured)."""
+    ``noise_scale``; offsets, quantisation and dropouts as configured); ``model_form`` makes the
+    truth differ from the fitted model (:mod:`.model_form`: its step and integrator, unmodelled
+    forces, effects outside the library, recorded in the key)."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
-    drawn = _draw_set(n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain)
+    drawn = _draw_set(
+        n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
+    )
     model, grid = _simulate_truth(drawn, drawn.chosen)
     recordings, truth_rows = [], []
     for b, app in enumerate(drawn.applications):
@@ -371,6 +377,11 @@ class _DrawnSet:
     cylinders: list[BrakeCylinder]
     noise_seeds: list[np.random.SeedSequence]
     chain: MeasurementChain | None = None
+    model_form: DrawnModelForm | None = None
+
+    @property
+    def truth_step_s(self) -> float:
+        return TRUTH_STEP_S if self.model_form is None else self.model_form.form.truth_step_s
 
 
 def _draw_set(
@@ -381,10 +392,12 @@ def _draw_set(
     base_offset: bool,
     scatter_setup: str,
     chain: MeasurementChain | None = None,
+    form: ModelForm | None = None,
 ) -> _DrawnSet:
     """The draws of a set from its seed, through independent streams (campaign, scatter, effects,
-    base offset, noise)."""
-    campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed = np.random.SeedSequence(seed).spawn(5)
+    base offset, noise, model form: a child's stream does not depend on how many are spawned)."""
+    streams = np.random.SeedSequence(seed).spawn(6)
+    campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed, form_seed = streams
     campaign_rng, scatter_rng, effect_rng, offset_rng = (
         np.random.default_rng(s) for s in (campaign_seed, scatter_seed, effect_seed, offset_seed)
     )
@@ -449,6 +462,9 @@ def _draw_set(
         # whatever the length of the recording or of the others.
         noise_seeds=noise_seed.spawn(n),
         chain=chain,
+        model_form=None
+        if form is None
+        else draw_model_form(form, np.random.default_rng(form_seed), [a.brake_mode for a in applications]),
     )
 
 
@@ -474,6 +490,7 @@ def _truth_row(drawn: _DrawnSet, b: int, model: EffectedModel, grid: GridTraject
         "initial_disc_C": app.initial_disc_C,
         "ambient_C": app.ambient_C,
         "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
+        **({} if drawn.model_form is None else {"model_form": truth_row_entry(drawn.model_form, b)}),
     }
 
 
@@ -481,6 +498,8 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
     """The answer key: the effects and their imprint, the base offset, the measurement chain and
     the per-application truth."""
     offset = drawn.offset
+    form = drawn.model_form
+    stems = [a.stem for a in drawn.applications]
     return {
         "generator": f"brakegym synth {__version__}",
         "seed": seed,
@@ -509,8 +528,11 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
             if drawn.chain is None
             else {"noise_scale": noise_scale}
         ),
-        "truth_step_s": TRUTH_STEP_S,
+        "truth_step_s": drawn.truth_step_s,
         "measurement_chain": None if drawn.chain is None else drawn.chain.model_dump(mode="json"),
+        "model_form": None if form is None else key_entry(form, stems),
+        # Effects outside the library: a diagnosis must leave them unexplained, not name them.
+        "expected_unexplained": [] if form is None else [e["id"] for e in key_entry(form, stems)["out_of_library"]],
         "applications": truth_rows,
     }
 
@@ -525,16 +547,22 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
             running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn.scatter_A,
         )
     applications = drawn.applications
-    pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, TRUTH_STEP_S)
     command = np.stack([a.axle_pressure_bar for a in applications])
     command_time = np.array([a.command_time_s for a in applications])
-    schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
+    simulator_class = Simulator
+    if drawn.model_form is not None:
+        model.extra_forces += drawn.model_form.extra_forces(command_time)
+        model.friction_modifiers += drawn.model_form.friction_modifiers()
+        simulator_class = drawn.model_form.form.simulator_class
+    step = drawn.truth_step_s
+    pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, step)
+    schedule = CommandSchedule(pressure, command, command_time, step)
     end_after_stop = np.array([a.standstill_s for a in applications])
 
     def finished(sim) -> bool:
         return bool(not sim.moving.any() and np.all(sim.time_s >= sim.stop_time_s + end_after_stop))
 
-    return model, simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
+    return model, simulate_grid(model, pressure, step, finished, before_step=schedule, simulator_class=simulator_class)
 
 
 def _sensor_channels(recordings: Sequence[Recording], model, grid, decel_source: str) -> list[dict[str, np.ndarray]]:
