@@ -24,10 +24,14 @@ import numpy as np
 
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 from ..recordings.format import Recording
+from ..recordings.replay import standstill_index
 from .locate import brake_onset_s
 from .noise import channel_samples, quantisation_step, zero_reading
 
 CHAIN_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
+# After the measured stop the deceleration steps to zero within a sample or two of the speed
+# channel; readings from this long after it are standstill.
+STANDSTILL_SETTLING_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -95,10 +99,12 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
         zeros = {column: zero_reading(recording.channel(column)[before]) for column in recording.pressure_columns}
         entry: dict[str, Any] = {"channels": channels, "pressure_before_brake_onset_bar": zeros}
         decel = recording.channel(DECEL)
-        if decel is not None and recording.metadata.decel_source == "accelerometer":
-            standing = recording.speed_mps == 0.0
-            # At standstill an accelerometer reads its bias less g x gradient: the two are one number.
-            entry["accelerometer_at_standstill_mps2"] = zero_reading(decel[standing & (recording.time_s > onset)])
+        stop = standstill_index(recording.speed_mps)
+        if decel is not None and recording.metadata.decel_source == "accelerometer" and stop is not None:
+            # At standstill (after the stop's own transient) an accelerometer reads its bias less
+            # g x gradient: the two are one number.
+            standing = recording.time_s > recording.time_s[stop] + STANDSTILL_SETTLING_S
+            entry["accelerometer_at_standstill_mps2"] = zero_reading(decel[standing])
         out["recordings"][recording.stem] = entry
         initial = initial_disc_temperature(recording)
         if initial.source != "given":

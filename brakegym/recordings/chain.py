@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from .. import config as cfg
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
@@ -43,14 +43,16 @@ class ChannelChain(cfg.StrictModel):
     def interval_s(self) -> float:
         return 1.0 / self.rate_Hz
 
-    @model_validator(mode="after")
-    def _jitter_keeps_order(self) -> ChannelChain:
-        if not self.jitter_s < 0.5 * self.interval_s:
+    @field_validator("jitter_s")
+    @classmethod
+    def _jitter_keeps_order(cls, jitter_s: float, info: ValidationInfo) -> float:
+        rate = info.data.get("rate_Hz")  # absent when rate_Hz itself is invalid
+        if rate is not None and not jitter_s < 0.5 / rate:
             raise ValueError(
-                f"jitter_s = {self.jitter_s} must be below half the sample interval ({0.5 * self.interval_s:g} s at "
-                f"{self.rate_Hz:g} Hz): samples of a channel must stay in order"
+                f"jitter_s = {jitter_s} must be below half the sample interval ({0.5 / rate:g} s at {rate:g} Hz): "
+                "samples of a channel must stay in order"
             )
-        return self
+        return jitter_s
 
 
 class ChainChannels(cfg.StrictModel):
