@@ -297,30 +297,7 @@ def synthesize(
         n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
     )
     model, grid = _simulate_truth(drawn, drawn.chosen)
-    recordings, truth_rows = [], []
-    for b, app in enumerate(drawn.applications):
-        stop = float(grid.stop_time_s[b])
-        if drawn.chain is not None:
-            record, chain_truth = _measure_through_chain(drawn, b, grid, model, stop, noise_scale)
-            write_recording(record, out_dir)
-            recordings.append(record)
-            truth_rows.append({**_truth_row(drawn, b, model, grid, stop), "measurement_chain": chain_truth})
-            continue
-        record = _measure(
-            app,
-            b,
-            grid,
-            model,
-            drawn.cylinders[b],
-            drawn.decel_source,
-            stop,
-            drawn.noise_seeds[b],
-            drawn.vehicle,
-            noise_scale,
-        )
-        write_recording(record, out_dir)
-        recordings.append(record)
-        truth_rows.append(_truth_row(drawn, b, model, grid, stop))
+    recordings, truth_rows = _write_recordings(drawn, model, grid, out_dir, noise_scale)
     if drawn.chosen:
         true_channels = _sensor_channels(recordings, model, grid, drawn.decel_source)
         for effect, entry in zip(drawn.chosen, drawn.effect_entries):
@@ -331,6 +308,36 @@ def synthesize(
     key_path.parent.mkdir(parents=True, exist_ok=True)
     key_path.write_text(json.dumps(key, indent=2) + "\n")
     return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
+
+
+def _write_recordings(
+    drawn: _DrawnSet, model: EffectedModel, grid: GridTrajectory, out_dir: Path, noise_scale: float
+) -> tuple[list[Recording], list[dict[str, Any]]]:
+    """Measure every application of the true run ``grid`` (through the set's measurement chain,
+    if any), write it into ``out_dir``; the recordings and the key's truth rows."""
+    recordings, truth_rows = [], []
+    for b, app in enumerate(drawn.applications):
+        stop = float(grid.stop_time_s[b])
+        row = _truth_row(drawn, b, model, grid, stop)
+        if drawn.chain is not None:
+            record, row["measurement_chain"] = _measure_through_chain(drawn, b, grid, model, stop, noise_scale)
+        else:
+            record = _measure(
+                app,
+                b,
+                grid,
+                model,
+                drawn.cylinders[b],
+                drawn.decel_source,
+                stop,
+                drawn.noise_seeds[b],
+                drawn.vehicle,
+                noise_scale,
+            )
+        write_recording(record, out_dir)
+        recordings.append(record)
+        truth_rows.append(row)
+    return recordings, truth_rows
 
 
 def _check_request(
