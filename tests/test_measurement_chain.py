@@ -150,10 +150,16 @@ def test_dropouts_are_blank_runs_at_the_configured_rate(noisy, chain):
         assert not np.isnan(recording.speed_mps[0])
 
 
-def test_coasting_before_the_command_follows_the_chain(noisy, chain):
-    low, high = chain.coasting_range_s
-    for truth in noisy.key["applications"]:
-        assert low <= truth["command_time_s"] <= high
+def test_coasting_before_the_command_follows_the_chain(tmp_path, chain):
+    late = chain.model_copy(update={"coasting_range_s": (12.0, 15.0)})
+    result = synthesize(tmp_path / "set", 2, seed=SEED, measurement_chain=late, noise_scale=0.0)
+    for recording, truth in zip(read_dataset(result.folder), result.key["applications"]):
+        assert 12.0 <= truth["command_time_s"] <= 15.0
+        # Nothing in the cylinders before the command: pressures hold their zero reading.
+        before = recording.time_s < truth["command_time_s"]
+        assert recording.time_s[before][-1] > 11.9
+        pressures = recording.pressures_bar[before]
+        assert np.nanmax(pressures) <= max(max(truth["measurement_chain"]["offsets"]["p_c_bar"]), 0.0) + 0.01
 
 
 def test_same_seed_same_bytes(tmp_path, noisy, chain):
