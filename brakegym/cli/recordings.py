@@ -64,9 +64,13 @@ def recordings_left_out(dataset: Dataset) -> list[dict[str, Any]]:
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
+    from ..recordings.chain import load_measurement_chain
+    from ..recordings.model_form import load_model_form
     from ..recordings.synth import EffectRequest, synthesize
 
     requests = [EffectRequest.parse(text) for text in args.effect]
+    chain = load_measurement_chain(args.measurement_chain) if args.measurement_chain else None
+    form = load_model_form(args.model_form) if args.model_form else None
     result = synthesize(
         args.out_dir,
         args.recordings,
@@ -76,6 +80,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
         base_offset=args.base_offset,
         key_path=args.key,
         noise_scale=args.noise_scale,
+        measurement_chain=chain,
+        model_form=form,
     )
     print(f"wrote {len(result.recordings)} recordings to {result.folder} and the answer key to {result.key_path}")
     return 0
@@ -110,6 +116,24 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
         type=finite_non_negative("--noise-scale"),
         default=1.0,
         help="factor on every sensor noise level (default 1)",
+    )
+    p.add_argument(
+        "--measurement-chain",
+        metavar="NAME|FILE.yaml",
+        help=(
+            "log every channel through a measurement chain (configs/measurement_chains, e.g. 'real': mixed and "
+            "uneven sample rates, quantisation, dropouts, accelerometer bias and AR(1) noise, transducer offsets, "
+            "a late disc thermometer) instead of the clean 10 Hz table"
+        ),
+    )
+    p.add_argument(
+        "--model-form",
+        metavar="NAME|FILE.yaml",
+        help=(
+            "make the truth differ from the fitted model (configs/model_forms, e.g. 'real_train': a fine step and "
+            "the numpy reference integrator, a slow unmodelled resistance, effects outside the library named in "
+            "the key under 'out_of_library')"
+        ),
     )
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")
     p.set_defaults(func=cmd_synth)

@@ -57,13 +57,15 @@ KINDS: dict[str, type[BaseModel]] = {
     "safety_cases": SafetyCase,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
-# brakegym.identification); found on the same search path with :func:`find`.
-OTHER_KINDS = ("environments", "agents", "identification")
+# brakegym.identification, brakegym.recordings); found on the same search path with :func:`find`.
+OTHER_KINDS = ("environments", "agents", "identification", "measurement_chains", "model_forms")
 # How messages name one config of a kind.
 _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
     "safety_cases": "safety case",
     "agents": "agent config",
     "identification": "identification config",
+    "measurement_chains": "measurement chain",
+    "model_forms": "model form",
 }
 
 #: The schema class a config is validated as; :func:`validate` and :func:`load_file` return an

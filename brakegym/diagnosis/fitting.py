@@ -5,7 +5,8 @@ The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]
 - the effect parameters are shared by every recording (a set-wide effect, inside its bounds);
 - ``v0``: each recording's initial speed as its speed sensor reads it (the true initial speed
   times a ``speed_sensor_scale`` in the fit), ``T0``: its initial disc temperature (nuisance
-  parameters: an initial-state error must not pose as an effect). In sensor units the bounds
+  parameters: an initial-state error must not pose as an effect; a recording without an initial
+  disc temperature starts from :func:`.inputs.initial_disc_temperature`). In sensor units the bounds
   around the measured initial speed hold whatever the scale; in true units a scale of 0.955 puts
   the initial speed of a 150 km/h stop 2 m/s above the measured one, beyond the bounds, and the
   bound pulls the fitted scale towards 1;
@@ -40,6 +41,7 @@ from ..effects import EFFECTS, FrictionLevel, ParameterSpec, SpeedSensorScale
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.format import Recording
 from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, replay_batch, standstill_index
+from .inputs import initial_disc_temperature
 
 FIT_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)
 # Deceleration samples this close to the measured stop are left out of the fit (the step at
@@ -144,7 +146,7 @@ class FitProblem:
 
     def _initial_nuisance(self) -> np.ndarray:
         v0 = np.array([r.speed_mps[0] for r in self.recordings])
-        T0 = np.array([r.initial_disc_C for r in self.recordings], dtype=float)
+        T0 = np.array([initial_disc_temperature(r).value_C for r in self.recordings], dtype=float)
         return np.concatenate([v0, T0, np.ones(self.n)])
 
     def gridded_start(self) -> np.ndarray:

@@ -23,7 +23,8 @@ from scipy.signal import savgol_filter
 
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.format import Recording
-from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, standstill_index
+from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, bridged_pressures_bar, standstill_index
+from .noise import ChannelNoise, channel_runs, channel_samples, pooled_channel_noise
 
 NOISE_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)
 SMOOTH_WINDOW = 11
@@ -69,15 +70,12 @@ def estimate_noise(recordings: Sequence[Recording]) -> dict[str, float]:
             values = recording.channel(channel)
             if values is None:
                 continue
-            use = ~np.isnan(values)
             if channel in (SPEED, DECEL):
-                use &= _moving(recording)
-            # Smooth runs without gaps only (a blank sample would shift the window).
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], use.astype(int), [0]])))
-            for start, end in zip(edges[::2], edges[1::2]):
-                if end - start >= 3 * SMOOTH_WINDOW:
-                    run = values[start:end]
-                    deviations.append(run - savgol_filter(run, SMOOTH_WINDOW, SMOOTH_ORDER))
+                values = np.where(_moving(recording), values, np.nan)
+            # Smooth the channel's own runs without a dropout only (a missing sample would shift
+            # the window); a channel logged at its own rate is blank between its samples.
+            for run in channel_runs(recording.time_s, values, min_samples=3 * SMOOTH_WINDOW):
+                deviations.append(values[run] - savgol_filter(values[run], SMOOTH_WINDOW, SMOOTH_ORDER))
         if deviations:
             d = np.concatenate(deviations)
             mad = np.median(np.abs(d - np.median(d))) / 0.6745
@@ -87,9 +85,29 @@ def estimate_noise(recordings: Sequence[Recording]) -> dict[str, float]:
     return out
 
 
+def estimate_noise_models(recordings: Sequence[Recording]) -> dict[str, ChannelNoise]:
+    """The AR(1) noise model of speed, deceleration and disc temperature
+    (:func:`.noise.pooled_channel_noise`, one per channel over all recordings, on the same samples
+    as :func:`estimate_noise`); channels no recording has are left out."""
+    out = {}
+    for channel in NOISE_CHANNELS:
+        series = []
+        for recording in recordings:
+            values = recording.channel(channel)
+            if values is None:
+                continue
+            if channel in (SPEED, DECEL):
+                values = np.where(_moving(recording), values, np.nan)
+            series.append((recording.time_s, values))
+        if series:
+            out[channel] = pooled_channel_noise(series)
+    return out
+
+
 def brake_onset_s(recording: Recording) -> float:
-    """First instant the mean cylinder pressure exceeds ``BRAKING_PRESSURE_BAR`` (recording clock)."""
-    pressure = np.nanmean(recording.pressures_bar, axis=1)
+    """First instant the mean cylinder pressure (linear between its samples) exceeds
+    ``BRAKING_PRESSURE_BAR`` (recording clock)."""
+    pressure = np.mean(bridged_pressures_bar(recording), axis=1)
     above = np.flatnonzero(pressure > BRAKING_PRESSURE_BAR)
     return float(recording.time_s[above[0]]) if above.size else float(recording.time_s[0])
 
@@ -109,21 +127,31 @@ class ResidualTrace:
     braking: np.ndarray
 
 
+def _kinematic_decel(time_s: np.ndarray, speed_residual: np.ndarray) -> np.ndarray:
+    """Minus the time derivative of the speed residual, taken on the speed channel's own samples
+    (a channel logged at its own rate is blank between them; a dropout of a few samples counts as
+    one interval there) and interpolated to every instant of the recording."""
+    sample_time, own = channel_samples(time_s, speed_residual)
+    step = float(np.median(np.diff(sample_time)))
+    derivative = -savgol_filter(own, SMOOTH_WINDOW, 2, deriv=1, delta=step)
+    return np.interp(time_s, sample_time, derivative)
+
+
 def residual_trace(replayed: Replay) -> ResidualTrace:
     recording = replayed.recording
     sim = replayed.simulated
     time = recording.time_s
     speed = recording.speed_mps - sim[SPEED].to_numpy()
-    filled = np.where(np.isnan(speed), np.interp(time, time[~np.isnan(speed)], speed[~np.isnan(speed)]), speed)
-    dt = float(np.median(np.diff(time)))
-    kinematic = -savgol_filter(filled, SMOOTH_WINDOW, 2, deriv=1, delta=dt)
+    kinematic = _kinematic_decel(time, speed)
     decel = temperature = None
     if DECEL in sim.columns and recording.channel(DECEL) is not None:
         decel = recording.channel(DECEL) - sim[DECEL].to_numpy()
     if DISC_TEMPERATURE in sim.columns and recording.channel(DISC_TEMPERATURE) is not None:
         temperature = recording.channel(DISC_TEMPERATURE) - sim[DISC_TEMPERATURE].to_numpy()
     states = replayed.states
-    pressure = np.nanmean(recording.pressures_bar, axis=1)
+    # The cylinder pressure as the replay sees it: linear between its samples (it is the
+    # replay's input), so instants without a pressure sample keep their axis value.
+    pressure = np.mean(bridged_pressures_bar(recording), axis=1)
     axes = {
         "position_m": states["true_position_m"].to_numpy(),
         "speed_mps": states["true_speed_mps"].to_numpy(),
@@ -172,41 +200,53 @@ def attribution(traces: Sequence[ResidualTrace]) -> dict[str, dict[str, float]]:
     return out
 
 
+def _channel_segments(
+    trace: ResidualTrace, channel: str, values: np.ndarray, mask: np.ndarray, sigma: float
+) -> list[dict]:
+    """The segments of one channel of one recording, on the channel's own samples (a channel
+    logged at its own rate is blank between them; smoothing over blanks would dilute it)."""
+    rows = np.flatnonzero(~np.isnan(values))
+    if rows.size < 2:
+        return []
+    time, own = trace.time_s[rows], values[rows]
+    width = max(int(round(SEGMENT_SMOOTH_S / float(np.median(np.diff(time))))), 1)
+    smooth = np.convolve(own, np.ones(width) / width, mode="same")
+    over = (np.abs(smooth) > SEGMENT_THRESHOLD * sigma) & mask[rows]
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], over.astype(int), [0]])))
+    found = []
+    for start, end in zip(edges[::2], edges[1::2]):
+        if time[end - 1] - time[start] < SEGMENT_MIN_S:
+            continue
+        part = own[start:end]
+        first, last = rows[start], rows[end - 1] + 1
+        speed = trace.axes["speed_mps"][first:last]
+        position = trace.axes["position_m"][first:last]
+        found.append(
+            {
+                "recording": trace.recording.stem,
+                "channel": channel,
+                "t_s": [round(float(time[start]), 2), round(float(time[end - 1]), 2)],
+                "speed_mps": [round(float(np.nanmin(speed)), 2), round(float(np.nanmax(speed)), 2)],
+                "position_m": [round(float(np.nanmin(position)), 1), round(float(np.nanmax(position)), 1)],
+                "rms": round(float(np.sqrt(np.mean(part**2))), 4),
+                "_weight": float(np.sum(part**2)) / sigma**2,
+            }
+        )
+    return found
+
+
 def segments(traces: Sequence[ResidualTrace], noise: dict[str, float], limit: int = 20) -> list[dict]:
     """Stretches of at least ``SEGMENT_MIN_S`` where a channel's residual, smoothed over
     ``SEGMENT_SMOOTH_S``, exceeds ``SEGMENT_THRESHOLD`` times its noise."""
     found = []
     for trace in traces:
-        dt = float(np.median(np.diff(trace.time_s)))
-        width = max(int(round(SEGMENT_SMOOTH_S / dt)), 1)
         for channel, values, mask in (
             (SPEED, trace.speed, trace.moving),
             (DECEL, trace.decel, trace.moving),
             (DISC_TEMPERATURE, trace.temperature, np.ones_like(trace.moving)),
         ):
-            if values is None or not np.isfinite(noise.get(channel, np.nan)):
-                continue
-            filled = np.where(np.isnan(values), 0.0, values)
-            smooth = np.convolve(filled, np.ones(width) / width, mode="same")
-            over = (np.abs(smooth) > SEGMENT_THRESHOLD * noise[channel]) & mask
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], over.astype(int), [0]])))
-            for start, end in zip(edges[::2], edges[1::2]):
-                if trace.time_s[end - 1] - trace.time_s[start] < SEGMENT_MIN_S:
-                    continue
-                part = values[start:end]
-                speed = trace.axes["speed_mps"][start:end]
-                position = trace.axes["position_m"][start:end]
-                found.append(
-                    {
-                        "recording": trace.recording.stem,
-                        "channel": channel,
-                        "t_s": [round(float(trace.time_s[start]), 2), round(float(trace.time_s[end - 1]), 2)],
-                        "speed_mps": [round(float(np.nanmin(speed)), 2), round(float(np.nanmax(speed)), 2)],
-                        "position_m": [round(float(np.nanmin(position)), 1), round(float(np.nanmax(position)), 1)],
-                        "rms": round(float(np.sqrt(np.nanmean(part**2))), 4),
-                        "_weight": float(np.nansum(part**2)) / noise[channel] ** 2,
-                    }
-                )
+            if values is not None and np.isfinite(noise.get(channel, np.nan)):
+                found += _channel_segments(trace, channel, values, mask, noise[channel])
     found.sort(key=lambda s: -s["_weight"])
     for segment in found:
         del segment["_weight"]

@@ -37,8 +37,17 @@ from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
 from .fitting import FitProblem, FitResult
+from .inputs import chain_report
 from .judging import Candidate, Judge
-from .locate import attribution, describe_unexplained, estimate_noise, residual_trace, segments
+from .locate import (
+    attribution,
+    describe_unexplained,
+    estimate_noise,
+    estimate_noise_models,
+    residual_trace,
+    segments,
+)
+from .noise import noise_model_entry
 from .report import build_report, candidate_entries
 from .rules import DiagnosisRules
 from .screening import ScreenedPoint, Screening, integer_neighbours
@@ -80,6 +89,7 @@ class Diagnoser:
             rules or DiagnosisRules(), **{k: v for k, v in overrides.items() if v is not None}
         )
         self.noise = estimate_noise(self.recordings)
+        self.noise_models = estimate_noise_models(self.recordings)
         fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
         self.problem = FitProblem(self.recordings, fit_noise)
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs
@@ -118,6 +128,10 @@ class Diagnoser:
             {c.effect_ids[0] for c in singles},
             judge.chi2_base,
         )
+        report["measurement_chain"] = chain_report(self.recordings)
+        report["noise_model"] = {
+            CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
+        }
         return Diagnosis(report, self.recordings, baseline, verdict.selected, problem)
 
     def _fit_singles(

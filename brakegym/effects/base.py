@@ -125,9 +125,12 @@ class EffectedModel:
     def n_trains(self) -> int:
         return self.conditions.n_trains
 
-    def simulator(self, pressure: PressureSource, step_s: float) -> Simulator:
-        """A simulator of this modified model."""
-        return Simulator(
+    def simulator(
+        self, pressure: PressureSource, step_s: float, simulator_class: type[Simulator] = Simulator
+    ) -> Simulator:
+        """A simulator of this modified model (``simulator_class``: the compiled one, or the numpy
+        reference that synthetic truth may be integrated with)."""
+        return simulator_class(
             self.plant,
             self.conditions,
             pressure,

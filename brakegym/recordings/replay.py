@@ -62,10 +62,12 @@ def simulate_grid(
     finished: Callable[[Simulator], bool],
     before_step: Callable[[Simulator], None] | None = None,
     max_time_s: float = MAX_STOP_TIME_S,
+    simulator_class: type[Simulator] = Simulator,
 ) -> GridTrajectory:
     """Run ``model`` from t = 0 until ``finished(sim)`` and keep the states at every step.
-    ``before_step(sim)`` may set commands (a :class:`~brakegym.applications.CommandSchedule`)."""
-    sim = model.simulator(pressure, step_s)
+    ``before_step(sim)`` may set commands (a :class:`~brakegym.applications.CommandSchedule`);
+    ``simulator_class`` integrates (the compiled simulator, or the numpy reference)."""
+    sim = model.simulator(pressure, step_s, simulator_class)
     discs, trains, decels, pressures = [], [], [], []
 
     def keep() -> None:

@@ -64,12 +64,15 @@ from ..applications import CommandSchedule
 from ..effects import EFFECTS, Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
 from ..physics import BrakeCylinder, RunningResistanceLaw
 from ..plants import brake_cylinder, train_plant, train_scatter
-from ..simulator import BatchConditions, CommandedPressure, Plant
+from ..simulator import BatchConditions, CommandedPressure, Plant, Simulator
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
+from .chain import PRESSURES, MeasurementChain
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_column
 from .format import Recording, write_recording
+from .logger import log_run
 from .measurement import GridTrajectory, MeasurementModel
 from .metadata import RecordingMetadata
+from .model_form import DrawnModelForm, ModelForm, draw_model_form, key_entry, truth_row_entry
 from .replay import simulate_grid
 
 VEHICLE = "emu_8axle"
@@ -192,7 +195,9 @@ def _round(values: np.ndarray, resolution: float) -> np.ndarray:
     return np.round(np.round(values / resolution) * resolution, 6)
 
 
-def draw_applications(rng: np.random.Generator, vehicle: cfg.Vehicle, n: int) -> list[Application]:
+def draw_applications(
+    rng: np.random.Generator, vehicle: cfg.Vehicle, n: int, coasting_range_s: tuple[float, float] = COASTING_RANGE_S
+) -> list[Application]:
     loads = sorted(vehicle.loads)
     modes = sorted(vehicle.brake_pressures_bar)
     actuations = ["EP", "PN"]
@@ -211,7 +216,7 @@ def draw_applications(rng: np.random.Generator, vehicle: cfg.Vehicle, n: int) ->
                 actuation=actuations[int(rng.integers(2))],
                 pad_set=str(int(rng.integers(1, 3))),
                 # On the truth grid, so the command switches at a step.
-                command_time_s=round(float(rng.uniform(*COASTING_RANGE_S)), 1),
+                command_time_s=round(float(rng.uniform(*coasting_range_s)), 1),
                 standstill_s=round(float(rng.uniform(*STANDSTILL_RANGE_S)), 1),
                 ambient_C=ambient,
                 initial_disc_C=round(ambient + float(rng.uniform(*INITIAL_DISC_EXCESS_RANGE_K)), 1),
@@ -272,46 +277,67 @@ def synthesize(
     key_path: str | Path | None = None,
     noise_scale: float = 1.0,
     scatter_setup: str = SCATTER_SETUP,
+    measurement_chain: MeasurementChain | None = None,
+    model_form: ModelForm | None = None,
 ) -> SynthResult:
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
 
     ``noise_scale`` multiplies every sensor noise level (0: noise-free, for checking a replay;
     larger for robustness); ``scatter_setup`` names the friction scatter set-up (``ds``: none,
-    and no running-resistance scatter either)."""
+    and no running-resistance scatter either); ``measurement_chain`` logs each channel through
+    that chain (:mod:`.logger`) instead of the clean 10 Hz table (its noise levels times
+    ``noise_scale``; offsets, quantisation and dropouts as configured); ``model_form`` makes the
+    truth differ from the fitted model (:mod:`.model_form`: its step and integrator, unmodelled
+    forces, effects outside the library, recorded in the key)."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
-    drawn = _draw_set(n_recordings, seed, effects, random_effects, base_offset, scatter_setup)
+    drawn = _draw_set(
+        n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
+    )
     model, grid = _simulate_truth(drawn, drawn.chosen)
-    recordings, truth_rows = [], []
-    for b, app in enumerate(drawn.applications):
-        stop = float(grid.stop_time_s[b])
-        record = _measure(
-            app,
-            b,
-            grid,
-            model,
-            drawn.cylinders[b],
-            drawn.decel_source,
-            stop,
-            drawn.noise_seeds[b],
-            drawn.vehicle,
-            noise_scale,
-        )
-        write_recording(record, out_dir)
-        recordings.append(record)
-        truth_rows.append(_truth_row(drawn, b, model, grid, stop))
+    recordings, truth_rows = _write_recordings(drawn, model, grid, out_dir, noise_scale)
     if drawn.chosen:
         true_channels = _sensor_channels(recordings, model, grid, drawn.decel_source)
         for effect, entry in zip(drawn.chosen, drawn.effect_entries):
             others = [e for e in drawn.chosen if e is not effect]
             without = _sensor_channels(recordings, *_simulate_truth(drawn, others), drawn.decel_source)
-            entry["imprint"] = _imprint(true_channels, without, drawn.decel_source, noise_scale)
+            entry["imprint"] = _imprint(true_channels, without, _imprint_sigmas(drawn, noise_scale))
     key = _answer_key(drawn, seed, noise_scale, truth_rows)
     key_path.parent.mkdir(parents=True, exist_ok=True)
     key_path.write_text(json.dumps(key, indent=2) + "\n")
     return SynthResult(recordings=recordings, key=key, folder=out_dir, key_path=key_path)
+
+
+def _write_recordings(
+    drawn: _DrawnSet, model: EffectedModel, grid: GridTrajectory, out_dir: Path, noise_scale: float
+) -> tuple[list[Recording], list[dict[str, Any]]]:
+    """Measure every application of the true run ``grid`` (through the set's measurement chain,
+    if any), write it into ``out_dir``; the recordings and the key's truth rows."""
+    recordings, truth_rows = [], []
+    for b, app in enumerate(drawn.applications):
+        stop = float(grid.stop_time_s[b])
+        row = _truth_row(drawn, b, model, grid, stop)
+        if drawn.chain is not None:
+            record, row["measurement_chain"] = _measure_through_chain(drawn, b, grid, model, stop, noise_scale)
+        else:
+            record = _measure(
+                app,
+                b,
+                grid,
+                model,
+                drawn.cylinders[b],
+                drawn.decel_source,
+                stop,
+                drawn.noise_seeds[b],
+                drawn.vehicle,
+                noise_scale,
+            )
+        write_recording(record, out_dir)
+        recordings.append(record)
+        truth_rows.append(row)
+    return recordings, truth_rows
 
 
 def _check_request(
@@ -357,14 +383,28 @@ class _DrawnSet:
     offset: dict[str, Any] | None
     cylinders: list[BrakeCylinder]
     noise_seeds: list[np.random.SeedSequence]
+    chain: MeasurementChain | None = None
+    model_form: DrawnModelForm | None = None
+
+    @property
+    def truth_step_s(self) -> float:
+        return TRUTH_STEP_S if self.model_form is None else self.model_form.form.truth_step_s
 
 
 def _draw_set(
-    n: int, seed: int, effects: Sequence[EffectRequest], random_effects: bool, base_offset: bool, scatter_setup: str
+    n: int,
+    seed: int,
+    effects: Sequence[EffectRequest],
+    random_effects: bool,
+    base_offset: bool,
+    scatter_setup: str,
+    chain: MeasurementChain | None = None,
+    form: ModelForm | None = None,
 ) -> _DrawnSet:
     """The draws of a set from its seed, through independent streams (campaign, scatter, effects,
-    base offset, noise)."""
-    campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed = np.random.SeedSequence(seed).spawn(5)
+    base offset, noise, model form: a child's stream does not depend on how many are spawned)."""
+    streams = np.random.SeedSequence(seed).spawn(6)
+    campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed, form_seed = streams
     campaign_rng, scatter_rng, effect_rng, offset_rng = (
         np.random.default_rng(s) for s in (campaign_seed, scatter_seed, effect_seed, offset_seed)
     )
@@ -374,8 +414,12 @@ def _draw_set(
     plant = train_plant(vehicle)
     requests = random_requests(effect_rng) if random_effects else list(effects)
     chosen, effect_entries = resolve_effects(requests, effect_rng)
-    applications = draw_applications(campaign_rng, vehicle, n)
+    applications = draw_applications(
+        campaign_rng, vehicle, n, COASTING_RANGE_S if chain is None else chain.coasting_range_s
+    )
     decel_source = "accelerometer" if campaign_rng.random() < ACCELEROMETER_PROBABILITY else "speed"
+    if chain is not None:
+        decel_source = chain.decel_source
     draw, drawn_A = train_scatter(vehicle, setup).draw(scatter_rng, n)
     initial_mu, power_coefficient, resistance_A = draw.initial_mu, draw.power_coefficient_per_s, drawn_A
     offset: dict[str, Any] | None = None
@@ -424,6 +468,10 @@ def _draw_set(
         # One noise seed per recording and channel: sample k of a recording gets the same noise
         # whatever the length of the recording or of the others.
         noise_seeds=noise_seed.spawn(n),
+        chain=chain,
+        model_form=None
+        if form is None
+        else draw_model_form(form, np.random.default_rng(form_seed), [a.brake_mode for a in applications]),
     )
 
 
@@ -449,6 +497,7 @@ def _truth_row(drawn: _DrawnSet, b: int, model: EffectedModel, grid: GridTraject
         "initial_disc_C": app.initial_disc_C,
         "ambient_C": app.ambient_C,
         "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
+        **({} if drawn.model_form is None else {"model_form": truth_row_entry(drawn.model_form, b)}),
     }
 
 
@@ -456,6 +505,8 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
     """The answer key: the effects and their imprint, the base offset, the measurement chain and
     the per-application truth."""
     offset = drawn.offset
+    form = drawn.model_form
+    stems = [a.stem for a in drawn.applications]
     return {
         "generator": f"brakegym synth {__version__}",
         "seed": seed,
@@ -473,11 +524,22 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
         ),
         "decel_source": drawn.decel_source,
         "instrumented_disc": INSTRUMENTED_DISC,
-        "sensor_noise": {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()},
-        "sample_interval_s": SAMPLE_INTERVAL_S,
-        "sample_jitter_s": SAMPLE_JITTER_S,
-        "dropout_probability": DROPOUT_PROBABILITY,
-        "truth_step_s": TRUTH_STEP_S,
+        # The clean logger's settings; a set written through a measurement chain has those instead.
+        **(
+            {
+                "sensor_noise": {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()},
+                "sample_interval_s": SAMPLE_INTERVAL_S,
+                "sample_jitter_s": SAMPLE_JITTER_S,
+                "dropout_probability": DROPOUT_PROBABILITY,
+            }
+            if drawn.chain is None
+            else {"noise_scale": noise_scale}
+        ),
+        "truth_step_s": drawn.truth_step_s,
+        "measurement_chain": None if drawn.chain is None else drawn.chain.model_dump(mode="json"),
+        "model_form": None if form is None else key_entry(form, stems),
+        # Effects outside the library: a diagnosis must leave them unexplained, not name them.
+        "expected_unexplained": [] if form is None else [e["id"] for e in key_entry(form, stems)["out_of_library"]],
         "applications": truth_rows,
     }
 
@@ -492,16 +554,22 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
             running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn.scatter_A,
         )
     applications = drawn.applications
-    pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, TRUTH_STEP_S)
     command = np.stack([a.axle_pressure_bar for a in applications])
     command_time = np.array([a.command_time_s for a in applications])
-    schedule = CommandSchedule(pressure, command, command_time, TRUTH_STEP_S)
+    simulator_class = Simulator
+    if drawn.model_form is not None:
+        model.extra_forces += drawn.model_form.extra_forces(command_time)
+        model.friction_modifiers += drawn.model_form.friction_modifiers()
+        simulator_class = drawn.model_form.form.simulator_class
+    step = drawn.truth_step_s
+    pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, step)
+    schedule = CommandSchedule(pressure, command, command_time, step)
     end_after_stop = np.array([a.standstill_s for a in applications])
 
     def finished(sim) -> bool:
         return bool(not sim.moving.any() and np.all(sim.time_s >= sim.stop_time_s + end_after_stop))
 
-    return model, simulate_grid(model, pressure, TRUTH_STEP_S, finished, before_step=schedule)
+    return model, simulate_grid(model, pressure, step, finished, before_step=schedule, simulator_class=simulator_class)
 
 
 def _sensor_channels(recordings: Sequence[Recording], model, grid, decel_source: str) -> list[dict[str, np.ndarray]]:
@@ -513,34 +581,46 @@ def _sensor_channels(recordings: Sequence[Recording], model, grid, decel_source:
     ]
 
 
+def _imprint_sigmas(drawn: _DrawnSet, noise_scale: float) -> dict[str, float]:
+    """Each channel's sensor noise (1 sigma) an effect's imprint is measured in: the set's own,
+    the nominal one when the set is written noise-free."""
+    scale = noise_scale if noise_scale > 0 else 1.0
+    if drawn.chain is not None:
+        chains = drawn.chain.channels.by_column()
+        # A channel logged without noise has no unit to measure an imprint in.
+        return {
+            channel: chains[channel].noise_sigma * scale
+            for channel in (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
+            if chains[channel].noise_sigma > 0
+        }
+    return {
+        SPEED: SENSOR_NOISE[SPEED] * scale,
+        DECEL: SENSOR_NOISE[f"decel_mps2_{drawn.decel_source}"] * scale,
+        DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE] * scale,
+        POSITION: SENSOR_NOISE[POSITION] * scale,
+    }
+
+
 def _imprint(
     with_effect: Sequence[dict[str, np.ndarray]],
     without_effect: Sequence[dict[str, np.ndarray]],
-    decel_source: str,
-    noise_scale: float,
+    sigma: Mapping[str, float],
 ) -> dict[str, Any]:
     """What an effect leaves in the recordings: the noise-free channels with it against those of
     the same runs without it (:func:`_sensor_channels`), in units of each channel's sensor noise
-    (the nominal noise when the set is written noise-free).
+    ``sigma`` (:func:`_imprint_sigmas`).
 
     ``expressed`` is false when no sample of any channel moves by IMPRINT_EXPRESSED_OVER_NOISE
     noise sigmas or more: such an effect (a fade onset above every temperature the discs reached,
     an adhesion limit above every deceleration demanded) is not in the data, and no diagnosis can
     be asked to find it."""
-    scale = noise_scale if noise_scale > 0 else 1.0
-    sigma = {
-        SPEED: SENSOR_NOISE[SPEED],
-        DECEL: SENSOR_NOISE[f"decel_mps2_{decel_source}"],
-        DISC_TEMPERATURE: SENSOR_NOISE[DISC_TEMPERATURE],
-        POSITION: SENSOR_NOISE[POSITION],
-    }
     sum_squares = {channel: 0.0 for channel in sigma}
     largest = {channel: 0.0 for channel in sigma}
     samples = 0
     for with_channels, without_channels in zip(with_effect, without_effect):
         samples += len(with_channels[SPEED])
         for channel, s in sigma.items():
-            change = (with_channels[channel] - without_channels[channel]) / (s * scale)
+            change = (with_channels[channel] - without_channels[channel]) / s
             sum_squares[channel] += float(np.sum(change**2))
             largest[channel] = max(largest[channel], float(np.max(np.abs(change))))
     max_over_noise = max(largest.values())
@@ -605,7 +685,13 @@ def _measure(
     ):
         values = _round(true[channel] + noise, RESOLUTION[channel])
         data[channel] = np.where(dropouts[:, column], np.nan, values)
-    metadata = RecordingMetadata(
+    return Recording(stem=app.stem, metadata=_metadata(app, decel_source), data=pd.DataFrame(data))
+
+
+def _metadata(app: Application, decel_source: str) -> RecordingMetadata:
+    """What a synthetic recording says was measured (no ``initial_disc_C``: the first disc
+    temperature sample, if any, gives it)."""
+    return RecordingMetadata(
         vehicle=VEHICLE,
         load=app.load,
         brake_mode=app.brake_mode,
@@ -615,4 +701,59 @@ def _measure(
         decel_source=decel_source,
         pad_set=app.pad_set,
     )
-    return Recording(stem=app.stem, metadata=metadata, data=pd.DataFrame(data))
+
+
+def _scaled_noise(chain: MeasurementChain, noise_scale: float) -> MeasurementChain:
+    """``chain`` with every channel's noise level times ``noise_scale`` (offsets, quantisation
+    and dropouts as they are)."""
+    channels = {
+        name: getattr(chain.channels, name).model_copy(
+            update={"noise_sigma": getattr(chain.channels, name).noise_sigma * noise_scale}
+        )
+        for name in type(chain.channels).model_fields
+    }
+    return chain.model_copy(update={"channels": chain.channels.model_copy(update=channels)})
+
+
+def _measure_through_chain(
+    drawn: _DrawnSet, index: int, grid: GridTrajectory, model: EffectedModel, stop_time_s: float, noise_scale: float
+) -> tuple[Recording, dict[str, Any]]:
+    """Application ``index`` logged through the set's measurement chain (:func:`.logger.log_run`):
+    the recording, and what the key records of its chain (each sensor's offset, each channel's
+    first sample instant)."""
+    assert drawn.chain is not None
+    app, cylinder = drawn.applications[index], drawn.cylinders[index]
+    measurement = MeasurementModel(grid, index, model, drawn.decel_source, INSTRUMENTED_DISC)
+
+    def sensed(channel: str):
+        return lambda time_s: measurement.channels(time_s)[channel]
+
+    # In the clean table's column order: speed, pressures, then the optional channels.
+    true_values = {SPEED: sensed(SPEED), PRESSURES: lambda time_s: _cylinder_pressure_bar(app, cylinder, time_s)}
+    true_values.update({channel: sensed(channel) for channel in (DECEL, DISC_TEMPERATURE, POSITION)})
+    columns = {channel: [channel] for channel in true_values}
+    columns[PRESSURES] = [pressure_column(axle + 1) for axle in range(drawn.vehicle.n_axles)]
+    low, high = PRESSURE_TRANSDUCER_RANGE_BAR
+    outputs = {
+        # A pulse-counting speed sensor reports a magnitude, and nothing at all once the wheels stand.
+        SPEED: lambda time_s, reading: np.where(time_s < stop_time_s, np.abs(reading), 0.0),
+        PRESSURES: lambda time_s, reading: np.clip(reading, low, high),
+    }
+    chain = _scaled_noise(drawn.chain, noise_scale)
+    end_s = stop_time_s + app.standstill_s
+    table, offsets = log_run(chain, drawn.noise_seeds[index], true_values, columns, end_s, outputs)
+    chains = chain.channels.by_column()
+    truth = {
+        "offsets": {
+            channel: [round(float(v), 6) for v in values]
+            for channel, values in offsets.items()
+            if chains[channel].offset_sigma > 0
+        },
+        "first_sample_s": {
+            column: float(table[TIME][np.flatnonzero(~np.isnan(table[column]))[0]])
+            for column in (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
+            if (~np.isnan(table[column])).any()
+        },
+    }
+    record = Recording(stem=app.stem, metadata=_metadata(app, drawn.decel_source), data=pd.DataFrame(table))
+    return record, truth
