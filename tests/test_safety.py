@@ -15,7 +15,13 @@ from brakegym.execution import DaskExecutor, LocalExecutor
 from brakegym.physics import BrakeCylinder, CaliperLaw
 from brakegym.safety import BrakingModel, InputLayout
 from brakegym.safety.conventional import conventional_stop, equivalent_response_time_s, time_to_force_share_s
-from brakegym.safety.etcs import confidence, kdry_table, nominal_band_decelerations, speed_band_edges_kmh
+from brakegym.safety.etcs import (
+    confidence,
+    confidence_label,
+    kdry_table,
+    nominal_band_decelerations,
+    speed_band_edges_kmh,
+)
 from brakegym.safety.osrd import (
     CURVES,
     TIMES,
@@ -427,6 +433,15 @@ def test_kdry_of_a_lognormal_mass_is_the_deceleration_of_the_quantile_mass():
         half_width = 0.5 * (table.kdry_ci95[:, column, 1] - table.kdry_ci95[:, column, 0])
         assert np.all(np.abs(table.kdry[:, column] - exact) <= 3 * half_width), (level, table.kdry[:, column], exact)
         np.testing.assert_allclose(table.kdry[:, column], exact, rtol=2e-3)
+
+
+def test_confidence_levels_are_subset_026s_national_values():
+    """M_NVEBCL 0 is 50 %, n >= 1 is 1 - 10^-n; the labels show every nine."""
+    assert confidence(0) == 0.5 and confidence(3) == pytest.approx(0.999, abs=1e-15)
+    assert confidence(9) == pytest.approx(1 - 1e-9, abs=1e-16)
+    assert [confidence_label(n) for n in (0, 1, 3, 9)] == ["50 %", "90 %", "99.9 %", "99.9999999 %"]
+    with pytest.raises(ValueError):
+        confidence(10)
 
 
 def test_kdry_is_the_same_bit_for_bit_on_worker_processes():

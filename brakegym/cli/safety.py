@@ -168,25 +168,25 @@ def cmd_kdry(args: argparse.Namespace) -> int:
 
 def kdry_report(table) -> str:
     """The table ``brakegym kdry`` prints: a row per confidence level, a column per speed band."""
-    from ..safety.etcs import confidence
+    from ..safety.etcs import confidence_label
 
     edges = table.speed_edges_kmh
     bands = [f"{low:g}-{high:g} km/h" for low, high in zip(edges, edges[1:])]
-    width = 22
+    width, label_width = 22, 26
     lines = [
         f"Kdry_rst: {table.vehicle}, load {table.load}, safety case {table.case}, method {table.method}, "
         f"seed {table.seed}; T_be {table.build_up_time_s:.2f} s; {table.model_evaluations} simulated stops in "
         f"{table.seconds:.0f} s",
-        f"{'':<22}" + "".join(f"{band:>{width}}" for band in bands),
-        f"{'A_brake_emergency':<22}" + "".join(f"{a:>{width}.3f}" for a in table.nominal_deceleration_mps2),
-        f"{'conventional':<22}" + "".join(f"{a:>{width}.3f}" for a in table.conventional_deceleration_mps2),
+        f"{'':<{label_width}}" + "".join(f"{band:>{width}}" for band in bands),
+        f"{'A_brake_emergency':<{label_width}}" + "".join(f"{a:>{width}.3f}" for a in table.nominal_deceleration_mps2),
+        f"{'conventional':<{label_width}}" + "".join(f"{a:>{width}.3f}" for a in table.conventional_deceleration_mps2),
     ]
     for column, level in enumerate(table.levels):
         cells = "".join(
             f"{f'{k:.3f} ({low:.3f}-{high:.3f})':>{width}}"
             for k, (low, high) in zip(table.kdry[:, column], table.kdry_ci95[:, column])
         )
-        lines.append(f"{f'M_NVEBCL {level} ({100 * confidence(level):.7g} %)':<22}" + cells)
+        lines.append(f"{f'M_NVEBCL {level} ({confidence_label(level)})':<{label_width}}" + cells)
     return "\n".join(lines)
 
 

@@ -54,6 +54,12 @@ def confidence(level: int) -> float:
     return 0.5 if level == 0 else 1.0 - 10.0**-level
 
 
+def confidence_label(level: int) -> str:
+    """EBCL of M_NVEBCL ``level`` in per cent, all its nines shown: ``"50 %"``, ``"99.9 %"``,
+    ``"99.9999999 %"``."""
+    return f"{100 * confidence(level):.{max(0, level - 2)}f} %"
+
+
 def shortfall_probability(level: int) -> float:
     """The probability that the deceleration falls below its EBCL quantile, ``1 - EBCL``."""
     return 0.5 if level == 0 else 10.0**-level

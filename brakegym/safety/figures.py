@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .etcs import KdryTable, confidence  # noqa: E402
+from .etcs import KdryTable, confidence_label  # noqa: E402
 
 
 def _steps(ax, edges_kmh: Sequence[float], values: np.ndarray, **style) -> None:
@@ -31,7 +31,7 @@ def kdry_figure(tables: Sequence[KdryTable], path: str | Path) -> Path:
         for column, (level, colour) in enumerate(zip(table.levels, colours)):
             safe = table.kdry[:, column] * nominal
             low, high = (table.kdry_ci95[:, column, end] * nominal for end in (0, 1))
-            _steps(ax, edges, safe, color=colour, label=f"EBCL {100 * confidence(level):.7g} %")
+            _steps(ax, edges, safe, color=colour, label=f"EBCL {confidence_label(level)}")
             centres = 0.5 * (edges[:-1] + edges[1:])
             ax.errorbar(centres, safe, yerr=[safe - low, high - safe], fmt="none", color=colour, capsize=2)
         _steps(ax, edges, nominal, color="black", linewidth=2, label="nominal (A_brake_emergency)")
