@@ -40,7 +40,8 @@ def kdry_figure(tables: Sequence[KdryTable], path: str | Path) -> Path:
         ax.set_xlabel("speed [km/h]")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("deceleration [m/s²]")
-    axes[0][-1].legend(fontsize=7, loc="lower left")
+    # Beside the panels: inside, the ten levels' lines would hide the lowest bands.
+    axes[0][-1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
     fig.suptitle(
         f"Emergency brake deceleration per speed band and safe deceleration Kdry_rst x nominal ({tables[0].method})"
     )
