@@ -1,0 +1,93 @@
+"""Wheel-rail adhesion (docs/adhesion.md, issue 16): Polach's creep-force law against its analytic
+limits, the rail-condition configs, and the simulator's adhesion option against physical limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from brakegym.physics.adhesion import (
+    PolachLaw,
+    WheelRailContact,
+    contact_semi_axis_m,
+    creep,
+    polach_shape,
+    polach_shape_slope,
+)
+
+DRY = PolachLaw(
+    static_friction=0.55,
+    friction_ratio_at_infinity=0.40,
+    friction_decay_s_per_m=0.60,
+    adhesion_reduction=1.00,
+    slip_reduction=0.40,
+)
+CONTACT = WheelRailContact(
+    semi_axis_a_m=0.0065, semi_axis_b_m=0.0049, reference_wheel_load_N=75e3, kalker_c11=3.9, shear_modulus_Pa=8.0e10
+)
+WHEEL_LOAD_N = 75e3
+STIFFNESS_N = CONTACT.creep_stiffness_N(WHEEL_LOAD_N)
+
+
+def test_creep_is_slip_over_speed_and_regularised_at_standstill():
+    assert creep(30.0, 29.7, 0.5) == pytest.approx(0.01)
+    # Below the regularisation speed the slip speed is divided by it, not by v.
+    assert creep(0.1, 0.05, 0.5) == pytest.approx(0.1)
+    assert creep(0.0, 0.0, 0.5) == 0.0
+
+
+def test_contact_grows_with_the_cube_root_of_the_load():
+    assert contact_semi_axis_m(8 * 75e3, 0.0065, 75e3) == pytest.approx(0.013)
+    assert CONTACT.creep_stiffness_N(75e3) == pytest.approx(0.25 * math.pi * 8.0e10 * 0.0065 * 0.0049 * 3.9)
+
+
+def test_small_creep_gives_kalker_slope_reduced_by_polach():
+    """For eps -> 0: F / Q -> (2 mu_0 / pi)(k_A + k_S) eps, eps = stiffness s / (Q mu_0): the slope
+    is (2 / pi)(k_A + k_S) stiffness / Q, whatever mu_0."""
+    s = 1e-7
+    coefficient = DRY.adhesion_coefficient(s, 0.0, WHEEL_LOAD_N, STIFFNESS_N)
+    expected_slope = (2 / math.pi) * (DRY.adhesion_reduction + DRY.slip_reduction) * STIFFNESS_N / WHEEL_LOAD_N
+    assert coefficient / s == pytest.approx(expected_slope, rel=1e-6)
+    assert DRY.creep_slope_at_fixed_friction(s, 0.0, WHEEL_LOAD_N, STIFFNESS_N) == pytest.approx(
+        expected_slope, rel=1e-6
+    )
+
+
+def test_adhesion_term_alone_peaks_at_k_A_eps_one_at_mu_over_pi():
+    """Without the slip term (k_S = 0) and without falling friction (A = 1), F / Q =
+    (2 mu / pi) k_A eps / (1 + (k_A eps)^2) peaks at k_A eps = 1 with mu / pi."""
+    law = PolachLaw(0.4, 1.0, 0.0, 0.5, 0.0)
+    peak, at_creep = law.peak_adhesion(30.0, WHEEL_LOAD_N, STIFFNESS_N, n_creeps=200001)
+    assert peak == pytest.approx(0.4 / math.pi, rel=1e-8)
+    expected_creep = 1.0 / law.adhesion_reduction * WHEEL_LOAD_N * 0.4 / STIFFNESS_N
+    assert at_creep == pytest.approx(expected_creep, rel=1e-3)
+
+
+def test_shape_slope_is_the_derivative_of_the_shape():
+    eps = np.array([0.01, 0.5, 1.0, 3.0, 40.0])
+    h = 1e-6
+    numeric = (polach_shape(eps + h, 0.8, 0.3) - polach_shape(eps - h, 0.8, 0.3)) / (2 * h)
+    np.testing.assert_allclose(polach_shape_slope(eps, 0.8, 0.3), numeric, rtol=1e-6)
+
+
+def test_falling_branch_past_the_peak_down_to_mu_0_A():
+    speed = 30.0
+    peak, at_creep = DRY.peak_adhesion(speed, WHEEL_LOAD_N, STIFFNESS_N)
+    creeps = np.array([at_creep, 2 * at_creep, 0.1, 0.5])
+    coefficients = DRY.adhesion_coefficient(creeps, creeps * speed, WHEEL_LOAD_N, STIFFNESS_N)
+    assert np.all(np.diff(coefficients) < 0)
+    # A locked wheel at high speed: eps is huge, the slip term gives mu(w), mu(w) -> mu_0 A.
+    locked = DRY.adhesion_coefficient(1.0, 1e3, WHEEL_LOAD_N, STIFFNESS_N)
+    assert locked == pytest.approx(DRY.static_friction * DRY.friction_ratio_at_infinity, rel=1e-3)
+    # Past the adhesion peak the slope at fixed friction may turn negative: it is clipped at 0.
+    assert DRY.creep_slope_at_fixed_friction(creeps, creeps * speed, WHEEL_LOAD_N, STIFFNESS_N).min() >= 0.0
+
+
+def test_force_is_odd_in_creep():
+    creeps = np.array([1e-4, 3e-3, 0.05, 0.7])
+    forward = DRY.creep_force_N(creeps, creeps * 20, WHEEL_LOAD_N, STIFFNESS_N)
+    backward = DRY.creep_force_N(-creeps, -creeps * 20, WHEEL_LOAD_N, STIFFNESS_N)
+    np.testing.assert_array_equal(backward, -forward)
+    assert DRY.creep_force_N(0.0, 0.0, WHEEL_LOAD_N, STIFFNESS_N) == 0.0
