@@ -19,9 +19,11 @@ from .physics import (
     DiscThermalModel,
     FrictionDraw,
     FrictionLaw,
+    PolachLaw,
     RunningResistanceLaw,
     ScatterPartition,
     StochasticFriction,
+    WheelRailContact,
     draw_friction,
     draw_running_resistance,
 )
@@ -85,6 +87,29 @@ def caliper_law(caliper: cfg.Caliper) -> CaliperLaw:
 def brake_cylinder(pneumatics: cfg.Pneumatics) -> BrakeCylinder:
     """Spec Section 4's cylinder response of an actuation (EP, PN)."""
     return BrakeCylinder(dead_time_s=pneumatics.dead_time_s, time_constant_s=pneumatics.time_constant_s)
+
+
+def polach_law(condition: cfg.RailCondition) -> PolachLaw:
+    """Polach's creep-force law of a rail condition (docs/adhesion.md)."""
+    return PolachLaw(
+        static_friction=condition.static_friction,
+        friction_ratio_at_infinity=condition.friction_ratio_at_infinity,
+        friction_decay_s_per_m=condition.friction_decay_s_per_m,
+        adhesion_reduction=condition.adhesion_reduction,
+        slip_reduction=condition.slip_reduction,
+    )
+
+
+def wheel_rail_contact(vehicle: cfg.Vehicle) -> WheelRailContact:
+    """The Hertz contact of the vehicle's wheels on the rail (docs/adhesion.md)."""
+    contact = vehicle.wheelsets.contact
+    return WheelRailContact(
+        semi_axis_a_m=contact.semi_axis_a_m,
+        semi_axis_b_m=contact.semi_axis_b_m,
+        reference_wheel_load_N=contact.reference_wheel_load_N,
+        kalker_c11=contact.kalker_c11,
+        shear_modulus_Pa=contact.shear_modulus_Pa,
+    )
 
 
 # ------------------------------------------------------------------------------------------------

@@ -4,10 +4,14 @@ limits, the rail-condition configs, and the simulator's adhesion option against 
 from __future__ import annotations
 
 import math
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
+from brakegym import config as cfg
 from brakegym.physics.adhesion import (
     PolachLaw,
     WheelRailContact,
@@ -16,6 +20,10 @@ from brakegym.physics.adhesion import (
     polach_shape,
     polach_shape_slope,
 )
+from brakegym.plants import polach_law, wheel_rail_contact
+from brakegym.units import STANDARD_GRAVITY_MPS2
+
+REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 
 DRY = PolachLaw(
     static_friction=0.55,
@@ -95,3 +103,71 @@ def test_force_is_odd_in_creep():
     backward = DRY.creep_force_N(-creeps, -creeps * 20, WHEEL_LOAD_N, STIFFNESS_N)
     np.testing.assert_array_equal(backward, -forward)
     assert DRY.creep_force_N(0.0, 0.0, WHEEL_LOAD_N, STIFFNESS_N) == 0.0
+
+
+# ------------------------------------------------------------------------------------------------
+# Rail conditions and the vehicle's wheelsets as configs
+
+
+@pytest.fixture
+def shipped_configs(monkeypatch):
+    """This checkout's configs first on the search path (an installed brakegym may ship others)."""
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(REPO_CONFIGS))
+
+
+@pytest.mark.parametrize("name", ["dry", "wet", "low"])
+def test_rail_condition_gives_its_peak_adhesion(shipped_configs, name):
+    """Each file's peak_adhesion is what its Polach parameters give at the emu_8axle's contact,
+    empty, 30 m/s, within 0.01 (the files state it rounded)."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    condition = cfg.load("rail_conditions", name)
+    assert condition.source.strip()
+    wheel_load_N = vehicle.mass_kg("empty") * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
+    stiffness_N = wheel_rail_contact(vehicle).creep_stiffness_N(wheel_load_N)
+    peak, _ = polach_law(condition).peak_adhesion(30.0, wheel_load_N, stiffness_N)
+    assert peak == pytest.approx(condition.peak_adhesion, abs=0.01)
+
+
+def test_low_adhesion_is_in_the_wsp_test_range(shipped_configs):
+    assert 0.05 <= cfg.load("rail_conditions", "low").peak_adhesion <= 0.10
+
+
+@pytest.fixture
+def config_copy(tmp_path, monkeypatch):
+    target = tmp_path / "configs"
+    shutil.copytree(REPO_CONFIGS, target)
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(target))
+    return target
+
+
+def _edit(path: Path, change) -> None:
+    data = yaml.safe_load(path.read_text())
+    change(data)
+    path.write_text(yaml.safe_dump(data))
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("static_friction", -0.2), ("friction_ratio_at_infinity", 1.5), ("slip_reduction", 0.0), ("source", "")],
+)
+def test_bad_rail_condition_names_file_field_value(config_copy, field, value):
+    path = config_copy / "rail_conditions" / "wet.yaml"
+    _edit(path, lambda data: data.update({field: value}))
+    with pytest.raises(cfg.ConfigError) as info:
+        cfg.load("rail_conditions", "wet")
+    message = str(info.value)
+    assert str(path) in message and f"field '{field}' = {value!r}" in message
+
+
+def test_wheelset_inertia_above_the_train_mass_is_refused(config_copy):
+    path = config_copy / "vehicles" / "emu_8axle.yaml"
+    _edit(path, lambda data: data["wheelsets"].update(inertia_kgm2=5e3))
+    with pytest.raises(cfg.ConfigError, match=r"wheelsets.inertia_kgm2 = 5000.0") as info:
+        cfg.load("vehicles", "emu_8axle")
+    assert str(path) in str(info.value)
+
+
+def test_vehicle_without_wheelsets_block_takes_the_documented_defaults(config_copy):
+    path = config_copy / "vehicles" / "emu_8axle.yaml"
+    _edit(path, lambda data: data.pop("wheelsets"))
+    assert cfg.load("vehicles", "emu_8axle").wheelsets == cfg.Wheelsets()

@@ -36,6 +36,7 @@ from .schema import (
     FieldCampaign,
     FrictionMaterial,
     Pneumatics,
+    RailCondition,
     SafetyCase,
     ScatterSetup,
     Vehicle,
@@ -55,6 +56,7 @@ KINDS: dict[str, type[BaseModel]] = {
     "campaigns": FieldCampaign,
     "effects": EffectSet,
     "safety_cases": SafetyCase,
+    "rail_conditions": RailCondition,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
 # brakegym.identification); found on the same search path with :func:`find`.
@@ -62,6 +64,7 @@ OTHER_KINDS = ("environments", "agents", "identification")
 # How messages name one config of a kind.
 _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
     "safety_cases": "safety case",
+    "rail_conditions": "rail condition",
     "agents": "agent config",
     "identification": "identification config",
 }
