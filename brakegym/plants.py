@@ -28,6 +28,7 @@ from .physics import (
     draw_running_resistance,
 )
 from .simulator import Plant
+from .simulator.wheelsets import WheelRailAdhesion
 
 
 def friction_law(material: cfg.FrictionMaterial) -> FrictionLaw:
@@ -109,6 +110,15 @@ def wheel_rail_contact(vehicle: cfg.Vehicle) -> WheelRailContact:
         reference_wheel_load_N=contact.reference_wheel_load_N,
         kalker_c11=contact.kalker_c11,
         shear_modulus_Pa=contact.shear_modulus_Pa,
+    )
+
+
+def wheel_rail_adhesion(vehicle: cfg.Vehicle, condition: cfg.RailCondition) -> WheelRailAdhesion:
+    """The adhesion option of ``vehicle`` on a rail in ``condition`` (docs/adhesion.md)."""
+    return WheelRailAdhesion(
+        law=polach_law(condition),
+        contact=wheel_rail_contact(vehicle),
+        wheelset_inertia_kgm2=vehicle.wheelsets.inertia_kgm2,
     )
 
 
