@@ -3,6 +3,7 @@ limits, the rail-condition configs, and the simulator's adhesion option against 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import shutil
 from pathlib import Path
@@ -12,6 +13,7 @@ import pytest
 import yaml
 
 from brakegym import config as cfg
+from brakegym.applications import TrainApplication, train_stops
 from brakegym.physics.adhesion import (
     PolachLaw,
     WheelRailContact,
@@ -20,10 +22,19 @@ from brakegym.physics.adhesion import (
     polach_shape,
     polach_shape_slope,
 )
-from brakegym.plants import polach_law, wheel_rail_contact
+from brakegym.plants import polach_law, wheel_rail_adhesion, wheel_rail_contact
+from brakegym.simulator.state import FRICTION_HEAT, SPEED
+from brakegym.simulator.wheelsets import DEFAULT_MAX_SUBSTEP_S, AdhesionSimulator, WheelRailAdhesion
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+
+
+@pytest.fixture(autouse=True)
+def checkout_configs(monkeypatch):
+    """This checkout's configs on the search path (an installed brakegym may ship others)."""
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(REPO_CONFIGS))
+
 
 DRY = PolachLaw(
     static_friction=0.55,
@@ -109,14 +120,8 @@ def test_force_is_odd_in_creep():
 # Rail conditions and the vehicle's wheelsets as configs
 
 
-@pytest.fixture
-def shipped_configs(monkeypatch):
-    """This checkout's configs first on the search path (an installed brakegym may ship others)."""
-    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(REPO_CONFIGS))
-
-
 @pytest.mark.parametrize("name", ["dry", "wet", "low"])
-def test_rail_condition_gives_its_peak_adhesion(shipped_configs, name):
+def test_rail_condition_gives_its_peak_adhesion(name):
     """Each file's peak_adhesion is what its Polach parameters give at the emu_8axle's contact,
     empty, 30 m/s, within 0.01 (the files state it rounded)."""
     vehicle = cfg.load("vehicles", "emu_8axle")
@@ -128,7 +133,7 @@ def test_rail_condition_gives_its_peak_adhesion(shipped_configs, name):
     assert peak == pytest.approx(condition.peak_adhesion, abs=0.01)
 
 
-def test_low_adhesion_is_in_the_wsp_test_range(shipped_configs):
+def test_low_adhesion_is_in_the_wsp_test_range():
     assert 0.05 <= cfg.load("rail_conditions", "low").peak_adhesion <= 0.10
 
 
@@ -171,3 +176,135 @@ def test_vehicle_without_wheelsets_block_takes_the_documented_defaults(config_co
     path = config_copy / "vehicles" / "emu_8axle.yaml"
     _edit(path, lambda data: data.pop("wheelsets"))
     assert cfg.load("vehicles", "emu_8axle").wheelsets == cfg.Wheelsets()
+
+
+# ------------------------------------------------------------------------------------------------
+# The simulator with the adhesion option: physical limits
+
+
+def _adhesion(condition: str, **changes) -> WheelRailAdhesion:
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    return dataclasses.replace(wheel_rail_adhesion(vehicle, cfg.load("rail_conditions", condition)), **changes)
+
+
+class WheelObserver:
+    """After each step: the largest creep of a rolling wheel above 5 m/s, the steps with a wheel
+    locked while the train runs, and whether a wheel locked over a whole step heated its discs."""
+
+    def __init__(self) -> None:
+        self.max_rolling_creep = 0.0
+        self.locked_steps = 0
+        self.heat_of_locked_discs_J = 0.0
+        self._before: tuple[np.ndarray, np.ndarray] | None = None
+
+    def update(self, sim: AdhesionSimulator) -> None:
+        speed = sim.train[SPEED]
+        wheels = sim.wheel_speed_mps
+        fast = (speed > 5.0) & sim.moving
+        if fast.any():
+            creeps = (speed - wheels)[:, fast] / speed[fast]
+            rolling = creeps[creeps < 0.5]
+            self.max_rolling_creep = max(self.max_rolling_creep, float(rolling.max(initial=0.0)))
+        locked = (wheels == 0.0) & sim.moving
+        heat = sim.disc[FRICTION_HEAT].sum(axis=1)  # (A, B)
+        if self._before is not None:
+            was_locked, heat_before = self._before
+            whole_step = was_locked & locked
+            self.locked_steps += int(whole_step.sum())
+            self.heat_of_locked_discs_J += float(np.abs(heat - heat_before)[whole_step].sum())
+        self._before = (locked, heat.copy())
+
+
+def _stop(condition: str | None, initial_speed_kmh: float = 120.0, **changes):
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    observer = WheelObserver()
+    adhesion = None if condition is None else _adhesion(condition, **changes)
+    summary = train_stops(
+        vehicle,
+        [TrainApplication("empty", "emergency", "EP", initial_speed_kmh)],
+        adhesion=adhesion,
+        observers=[observer] if adhesion else (),
+    )
+    return summary, observer
+
+
+@pytest.fixture(scope="module")
+def stops(request):
+    """The golden train case (120 km/h, empty, emergency, EP) without adhesion, on a dry and on
+    a low-adhesion rail."""
+    with cfg.config_path(REPO_CONFIGS):
+        return {condition: _stop(condition) for condition in (None, "dry", "low")}
+
+
+def test_dry_rail_stops_like_the_model_without_adhesion(stops):
+    """Issue 16: dry rails with the adhesion model on give the golden train case within 0.5 %."""
+    without, _ = stops[None]
+    dry, _ = stops["dry"]
+    assert dry.stop_distance_m[0] == pytest.approx(without.stop_distance_m[0], rel=5e-3)
+    assert dry.stop_time_s[0] == pytest.approx(without.stop_time_s[0], rel=5e-3)
+
+
+def test_pure_rolling_when_the_brake_force_is_far_below_the_adhesion(stops):
+    """Dry rail: the brake asks about 0.1 of the weight, the rail gives 0.36; the wheels roll with
+    a creep near the law's linear slope (demand / slope ~ 0.1 %) and slip next to no energy."""
+    dry, observer = stops["dry"]
+    assert observer.locked_steps == 0
+    assert 0.0 < observer.max_rolling_creep < 3e-3
+    assert dry.slip_work_J.sum() < 2e-3 * dry.initial_kinetic_energy_J[0]
+
+
+@pytest.mark.parametrize("condition", ["dry", "low"])
+def test_kinetic_energy_lost_is_disc_slip_and_resistance_work(stops, condition):
+    summary, _ = stops[condition]
+    dissipated = summary.brake_work_J + summary.slip_work_J.sum(axis=1) + summary.resistance_work_J
+    assert dissipated[0] == pytest.approx(summary.initial_kinetic_energy_J[0], rel=5e-3)
+
+
+def test_low_adhesion_locks_the_wheels_and_their_discs_stay_cold(stops):
+    """Without WSP the emergency brake locks the wheels on the low rail; a locked wheel's discs get
+    no friction heat while its tread slides (slip work instead)."""
+    low, observer = stops["low"]
+    dry, _ = stops["dry"]
+    assert observer.locked_steps > 100
+    assert observer.heat_of_locked_discs_J == 0.0
+    assert low.slip_work_J.sum() > 0.5 * low.initial_kinetic_energy_J[0]
+    assert low.friction_heat_J.sum() < 0.2 * dry.friction_heat_J.sum()
+
+
+def test_no_stop_shorter_than_the_adhesion_allows(stops):
+    """The body decelerates by at most (peak adhesion x weight + F_R) / M, all axles braked: the
+    braking distance is at least v0^2 / (2 a_max), a_max with the largest peak adhesion from
+    standstill to v0 and the resistance at v0."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    mass_kg = vehicle.mass_kg("empty")
+    wheel_load_N = mass_kg * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
+    adhesion = _adhesion("low")
+    stiffness_N = adhesion.contact.creep_stiffness_N(wheel_load_N)
+    v0 = 120 / 3.6
+    peak = max(adhesion.law.peak_adhesion(v, wheel_load_N, stiffness_N)[0] for v in np.linspace(0.5, v0, 12))
+    body_mass_kg = mass_kg - vehicle.n_axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
+    resistance = vehicle.running_resistance
+    resistance_N = resistance.A_N + resistance.B_N_per_mps * v0 + resistance.C_N_per_mps2 * v0**2
+    max_deceleration = (peak * mass_kg * STANDARD_GRAVITY_MPS2 + resistance_N) / body_mass_kg
+    low, _ = stops["low"]
+    assert low.braking_distance_m[0] >= v0**2 / (2 * max_deceleration)
+
+
+def test_wheelset_substeps_converge_against_a_tenth_of_them():
+    """Low rail from 80 km/h (wheels lock): the 10 ms substeps against 1 ms ones."""
+    coarse, _ = _stop("low", 80.0)
+    fine, _ = _stop("low", 80.0, max_substep_s=DEFAULT_MAX_SUBSTEP_S / 10)
+    assert coarse.stop_distance_m[0] == pytest.approx(fine.stop_distance_m[0], rel=5e-3)
+    assert coarse.slip_work_J.sum() == pytest.approx(fine.slip_work_J.sum(), rel=5e-3)
+    assert coarse.brake_work_J[0] == pytest.approx(fine.brake_work_J[0], rel=5e-3)
+
+
+def test_adhesion_option_refuses_hooks():
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    with pytest.raises(ValueError, match="without extra forces"):
+        train_stops(
+            vehicle,
+            [TrainApplication("empty", "emergency", "EP", 120.0)],
+            adhesion=_adhesion("dry"),
+            extra_forces=[object()],
+        )
