@@ -12,7 +12,7 @@ then axles and the discs of each axle. Nothing here integrates in time (that is 
 job), and nothing here reads configs: :mod:`brakegym.plants` builds these objects from them.
 """
 
-from .adhesion import PolachLaw, WheelRailContact
+from .adhesion import PolachLaw, RailSections, WheelRailContact
 from .friction import FrictionLaw
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
 from .pneumatics import BrakeCylinder, CaliperLaw
@@ -35,6 +35,7 @@ __all__ = [
     "FrictionLaw",
     "HeatFlows",
     "PolachLaw",
+    "RailSections",
     "RunningResistanceLaw",
     "ScatterPartition",
     "StochasticFriction",

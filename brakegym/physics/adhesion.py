@@ -156,3 +156,37 @@ class WheelRailContact:
         a = contact_semi_axis_m(wheel_load_N, self.semi_axis_a_m, self.reference_wheel_load_N)
         b = contact_semi_axis_m(wheel_load_N, self.semi_axis_b_m, self.reference_wheel_load_N)
         return creep_stiffness_N(self.shear_modulus_Pa, a, b, self.kalker_c11)
+
+
+@dataclass(frozen=True)
+class RailSections:
+    """A line whose rail condition changes along the track: section i runs from ``starts_m[i]``
+    to the next start (the last to the end of the line), with the creep-force law ``laws[i]``.
+    Positions count along the track from where the simulation starts the train."""
+
+    starts_m: tuple[float, ...]
+    laws: tuple[PolachLaw, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.starts_m) != len(self.laws) or not self.laws:
+            raise ValueError(f"{len(self.starts_m)} section starts for {len(self.laws)} laws: need one each")
+        if self.starts_m[0] != 0.0 or any(b <= a for a, b in zip(self.starts_m, self.starts_m[1:])):
+            raise ValueError(f"section starts {self.starts_m}: must begin at 0 and rise")
+
+    def law_at(self, position_m: np.ndarray) -> PolachLaw:
+        """The law at each of ``position_m``, its parameters arrays shaped like the positions
+        (before the line's start, the first section's)."""
+        section = np.maximum(np.searchsorted(self.starts_m, position_m, side="right") - 1, 0)
+        table = np.array(
+            [
+                [
+                    law.static_friction,
+                    law.friction_ratio_at_infinity,
+                    law.friction_decay_s_per_m,
+                    law.adhesion_reduction,
+                    law.slip_reduction,
+                ]
+                for law in self.laws
+            ]
+        )
+        return PolachLaw(*np.moveaxis(table[section], -1, 0))

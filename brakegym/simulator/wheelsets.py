@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics import PolachLaw, RunningResistanceLaw, WheelRailContact
+from ..physics import PolachLaw, RailSections, RunningResistanceLaw, WheelRailContact
 from ..physics.adhesion import creep
 from ..physics.mechanics import effective_mu
 from ..units import STANDARD_GRAVITY_MPS2
@@ -55,15 +55,26 @@ DEFAULT_MAX_SUBSTEP_S = 0.01
 
 @dataclass(frozen=True)
 class WheelRailAdhesion:
-    """What the adhesion option adds to a plant: the rail's creep-force law, the wheels' contact,
-    the inertia of each wheelset about its axis, the creep's regularisation speed and the longest
-    wheelset substep."""
+    """What the adhesion option adds to a plant: the rail's creep-force law (one for the whole
+    line, or :class:`~brakegym.physics.adhesion.RailSections`), the wheels' contact, the inertia
+    of each wheelset about its axis, the creep's regularisation speed, the longest wheelset
+    substep, and how far behind the train's position each axle runs (m, one per axle; all at the
+    train's position if not given), which decides when each axle enters a section."""
 
-    law: PolachLaw
+    law: PolachLaw | RailSections
     contact: WheelRailContact
     wheelset_inertia_kgm2: float
     regularisation_speed_mps: float = DEFAULT_REGULARISATION_SPEED_MPS
     max_substep_s: float = DEFAULT_MAX_SUBSTEP_S
+    axle_offsets_m: tuple[float, ...] | None = None
+
+    def law_at(self, position_m: np.ndarray) -> PolachLaw:
+        """The creep-force law under each axle, train positions ``position_m`` (B,): the law
+        itself on a uniform rail, else parameter arrays (A, B)."""
+        if isinstance(self.law, PolachLaw):
+            return self.law
+        offsets = np.zeros(1) if self.axle_offsets_m is None else np.asarray(self.axle_offsets_m)
+        return self.law.law_at(position_m[None, :] - offsets[:, None])
 
     def substeps(self, step_s: float) -> int:
         """Substeps per step: an even number (the RK4 stages need the middle), none longer than
@@ -144,18 +155,17 @@ class AdhesionSimulator(Simulator):
     # ----------------------------------------------------------------------------------------
     # Forces
 
-    def creep_force_N(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray) -> np.ndarray:
+    def creep_force_N(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, law: PolachLaw) -> np.ndarray:
         """Force of each axle's two wheels on the rail (A, B), retarding the train when the wheel
-        turns slower than it runs."""
+        turns slower than it runs; ``law`` from :meth:`WheelRailAdhesion.law_at`."""
         slip = speed_mps - wheel_speed_mps
         s = creep(speed_mps, wheel_speed_mps, self.adhesion.regularisation_speed_mps)
-        return 2.0 * self.adhesion.law.creep_force_N(s, slip, self.wheel_load_N, self.creep_stiffness_N)
+        return 2.0 * law.creep_force_N(s, slip, self.wheel_load_N, self.creep_stiffness_N)
 
-    def _creep_force_and_slope(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray):
+    def _creep_force_and_slope(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, law: PolachLaw):
         """The axle forces (A, B) and their slope dF/ds at fixed friction (A, B), N per unit creep."""
         slip = speed_mps - wheel_speed_mps
         s = creep(speed_mps, wheel_speed_mps, self.adhesion.regularisation_speed_mps)
-        law = self.adhesion.law
         force = 2.0 * law.creep_force_N(s, slip, self.wheel_load_N, self.creep_stiffness_N)
         slope = (
             2.0
@@ -258,7 +268,8 @@ class AdhesionSimulator(Simulator):
         speeds = np.empty((3, self.n_trains))
         wheel_speeds[0], speeds[0] = u, train[SPEED]
         stop_fraction = np.full(self.n_trains, np.nan)
-        powers = self._substep_powers(train[SPEED], u, p_start)
+        law = self.adhesion.law_at(train[POSITION])
+        powers = self._substep_powers(train[SPEED], u, p_start, law)
         for j in range(n):
             tau = (j + 1) * delta / h  # the substep's end, as a fraction of the step
             pressure = (
@@ -266,14 +277,15 @@ class AdhesionSimulator(Simulator):
             )
             brake_N = self._brake_force_at_wheel_N(mu0 + (tau * h) * mu_rate_per_s, self.clamp_force_N(pressure))
             v0 = train[SPEED].copy()
-            u_new, v_new = self._linearly_implicit_update(v0, u, brake_N, delta)
+            u_new, v_new = self._linearly_implicit_update(v0, u, brake_N, delta, law)
             stops = active & (v_new <= 0.0)
             theta = np.where(stops, v0 / np.where(stops, v0 - v_new, 1.0), 1.0)
             v_new = np.where(stops, 0.0, v_new)
             u_new = np.where(stops, 0.0, u_new)
-            new_powers = self._substep_powers(v_new, u_new, pressure)
             weight = np.where(active, 0.5 * delta * theta, 0.0)
             train[POSITION] += weight * (v0 + v_new)
+            law = self.adhesion.law_at(train[POSITION])
+            new_powers = self._substep_powers(v_new, u_new, pressure, law)
             train[RESISTANCE_WORK] += weight * (powers["resistance"] + new_powers["resistance"])
             train[MU_EFF_DISTANCE] += weight * (powers["mu_eff"] + new_powers["mu_eff"])
             slip_work += weight * (powers["slip"] + new_powers["slip"])
@@ -287,10 +299,12 @@ class AdhesionSimulator(Simulator):
         wheel_speeds[2], speeds[2] = u, train[SPEED]
         return _Substeps(wheel_speeds, speeds, train, slip_work, stop_fraction)
 
-    def _substep_powers(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, pressure_bar: np.ndarray) -> dict:
+    def _substep_powers(
+        self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, pressure_bar: np.ndarray, law: PolachLaw
+    ) -> dict:
         """The integrands the substeps sum by the trapezoid rule: slip power per axle (A, B),
         resistance power and mu_eff v (B,)."""
-        force = self.creep_force_N(speed_mps, wheel_speed_mps)
+        force = self.creep_force_N(speed_mps, wheel_speed_mps, law)
         resistance = self.plant.running_resistance.force_N(speed_mps, self.resistance_A_N)
         # Eq. 15 with m d, m the effective mass, d the body's deceleration.
         retarding = self.mass_kg * (force.sum(axis=0) + resistance) / self.body_mass_kg
@@ -305,14 +319,19 @@ class AdhesionSimulator(Simulator):
         }
 
     def _linearly_implicit_update(
-        self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, brake_force_N: np.ndarray, delta_s: float
+        self,
+        speed_mps: np.ndarray,
+        wheel_speed_mps: np.ndarray,
+        brake_force_N: np.ndarray,
+        delta_s: float,
+        law: PolachLaw,
     ) -> tuple[np.ndarray, np.ndarray]:
         """One linearly implicit Euler substep of the wheel speeds u (A, B) and the train speed v
         (B,): (I - delta J) dy = delta f(y). The Jacobian J is the arrow of the creep forces'
         slope at fixed friction (the falling friction, slow, stays explicit); a wheel that would
         turn backwards is locked by its brake (u = 0)."""
         plant, adhesion = self.plant, self.adhesion
-        force, slope = self._creep_force_and_slope(speed_mps, wheel_speed_mps)
+        force, slope = self._creep_force_and_slope(speed_mps, wheel_speed_mps, law)
         scaled_speed = np.maximum(speed_mps, adhesion.regularisation_speed_mps)
         # ds/dv: 1 / v_reg below the regularisation speed, u / v^2 above it.
         creep_per_speed = np.where(
@@ -341,7 +360,8 @@ class AdhesionSimulator(Simulator):
     # ----------------------------------------------------------------------------------------
     def deceleration_mps2(self) -> np.ndarray:
         """The train body's deceleration at the current state, m/s^2 (0 standing)."""
-        force = self.creep_force_N(self.train[SPEED], self.wheel_speed_mps).sum(axis=0)
+        law = self.adhesion.law_at(self.train[POSITION])
+        force = self.creep_force_N(self.train[SPEED], self.wheel_speed_mps, law).sum(axis=0)
         resistance = self.plant.running_resistance.force_N(self.train[SPEED], self.resistance_A_N)
         return np.where(self.moving, (force + resistance) / self.body_mass_kg, 0.0)
 
