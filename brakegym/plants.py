@@ -20,6 +20,7 @@ from .physics import (
     FrictionDraw,
     FrictionLaw,
     PolachLaw,
+    RailSections,
     RunningResistanceLaw,
     ScatterPartition,
     StochasticFriction,
@@ -113,10 +114,23 @@ def wheel_rail_contact(vehicle: cfg.Vehicle) -> WheelRailContact:
     )
 
 
-def wheel_rail_adhesion(vehicle: cfg.Vehicle, condition: cfg.RailCondition) -> WheelRailAdhesion:
-    """The adhesion option of ``vehicle`` on a rail in ``condition`` (docs/adhesion.md)."""
+def rail_sections(line: cfg.Line) -> RailSections:
+    """The creep-force law of each section of ``line``; an unknown rail condition names the line
+    and the section."""
+    laws = []
+    for index, section in enumerate(line.sections):
+        try:
+            laws.append(polach_law(cfg.load("rail_conditions", section.rail_condition)))
+        except cfg.ConfigError as error:
+            raise cfg.ConfigError(f"line {line.name!r}, sections[{index}].rail_condition: {error}") from None
+    return RailSections(starts_m=tuple(section.start_m for section in line.sections), laws=tuple(laws))
+
+
+def wheel_rail_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line) -> WheelRailAdhesion:
+    """The adhesion option of ``vehicle`` on a rail in one condition or on a line of sections
+    (docs/adhesion.md)."""
     return WheelRailAdhesion(
-        law=polach_law(condition),
+        law=rail_sections(rail) if isinstance(rail, cfg.Line) else polach_law(rail),
         contact=wheel_rail_contact(vehicle),
         wheelset_inertia_kgm2=vehicle.wheelsets.inertia_kgm2,
     )

@@ -23,7 +23,7 @@ from brakegym.physics.adhesion import (
     polach_shape_slope,
 )
 from brakegym.plants import polach_law, wheel_rail_adhesion, wheel_rail_contact
-from brakegym.simulator.state import FRICTION_HEAT, SPEED
+from brakegym.simulator.state import FRICTION_HEAT, POSITION, SPEED
 from brakegym.simulator.wheelsets import DEFAULT_MAX_SUBSTEP_S, AdhesionSimulator, WheelRailAdhesion
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
@@ -195,6 +195,7 @@ class WheelObserver:
         self.max_rolling_creep = 0.0
         self.locked_steps = 0
         self.heat_of_locked_discs_J = 0.0
+        self.locked_positions_m: list[float] = []
         self._before: tuple[np.ndarray, np.ndarray] | None = None
 
     def update(self, sim: AdhesionSimulator) -> None:
@@ -206,6 +207,7 @@ class WheelObserver:
             rolling = creeps[creeps < 0.5]
             self.max_rolling_creep = max(self.max_rolling_creep, float(rolling.max(initial=0.0)))
         locked = (wheels == 0.0) & sim.moving
+        self.locked_positions_m.extend(np.broadcast_to(sim.train[POSITION], locked.shape)[locked].tolist())
         heat = sim.disc[FRICTION_HEAT].sum(axis=1)  # (A, B)
         if self._before is not None:
             was_locked, heat_before = self._before
@@ -215,10 +217,13 @@ class WheelObserver:
         self._before = (locked, heat.copy())
 
 
-def _stop(condition: str | None, initial_speed_kmh: float = 120.0, **changes):
+def _stop(condition: str | None, initial_speed_kmh: float = 120.0, line: str | None = None, **changes):
     vehicle = cfg.load("vehicles", "emu_8axle")
     observer = WheelObserver()
-    adhesion = None if condition is None else _adhesion(condition, **changes)
+    if line is not None:
+        adhesion = wheel_rail_adhesion(vehicle, cfg.load("lines", line))
+    else:
+        adhesion = None if condition is None else _adhesion(condition, **changes)
     summary = train_stops(
         vehicle,
         [TrainApplication("empty", "emergency", "EP", initial_speed_kmh)],
@@ -308,3 +313,56 @@ def test_adhesion_option_refuses_hooks():
             adhesion=_adhesion("dry"),
             extra_forces=[object()],
         )
+
+
+# ------------------------------------------------------------------------------------------------
+# A line of sections: a low-adhesion patch
+
+
+def test_wheels_lock_on_the_low_adhesion_patch_only(stops):
+    """lines/low_patch: dry, low from 200 m to 500 m, dry again. The wheels lock on the patch and
+    roll again after it (within the few metres a wheel needs to spin up); the stop lies between
+    the dry one and the all-low one."""
+    patch, observer = _stop(None, line="low_patch")
+    line = cfg.load("lines", "low_patch")
+    start, end = line.sections[1].start_m, line.sections[2].start_m
+    assert observer.locked_steps > 10
+    assert min(observer.locked_positions_m) >= start
+    assert max(observer.locked_positions_m) <= end + 10.0
+    assert stops["dry"][0].stop_distance_m[0] < patch.stop_distance_m[0] < stops["low"][0].stop_distance_m[0]
+
+
+def test_a_line_of_one_section_is_its_rail_condition(config_copy, stops):
+    path = config_copy / "lines" / "low_patch.yaml"
+    _edit(path, lambda data: data.update(sections=[{"start_m": 0.0, "rail_condition": "dry"}]))
+    uniform, _ = _stop(None, line="low_patch")
+    np.testing.assert_array_equal(uniform.stop_distance_m, stops["dry"][0].stop_distance_m)
+    np.testing.assert_array_equal(uniform.slip_work_J, stops["dry"][0].slip_work_J)
+
+
+@pytest.mark.parametrize(
+    ("sections", "message"),
+    [
+        ([{"start_m": 5.0, "rail_condition": "dry"}], "sections[0].start_m = 5.0: the first section must start at 0"),
+        (
+            [{"start_m": 0.0, "rail_condition": "dry"}, {"start_m": 0.0, "rail_condition": "low"}],
+            "sections[1].start_m = 0.0: must lie beyond",
+        ),
+    ],
+)
+def test_bad_line_names_file_field_value(config_copy, sections, message):
+    path = config_copy / "lines" / "low_patch.yaml"
+    _edit(path, lambda data: data.update(sections=sections))
+    with pytest.raises(cfg.ConfigError) as info:
+        cfg.load("lines", "low_patch")
+    assert str(path) in str(info.value) and message in str(info.value)
+
+
+def test_unknown_rail_condition_of_a_line_names_line_and_section(config_copy):
+    path = config_copy / "lines" / "low_patch.yaml"
+    _edit(path, lambda data: data["sections"][1].update(rail_condition="icy"))
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    with pytest.raises(
+        cfg.ConfigError, match=r"line 'low_patch', sections\[1\].rail_condition: unknown rail condition 'icy'"
+    ):
+        wheel_rail_adhesion(vehicle, cfg.load("lines", "low_patch"))

@@ -2,8 +2,8 @@
 
 Every physical constant of the simulator lives in a YAML file, one folder per kind (``materials``,
 ``discs``, ``pneumatics``, ``rigs``, ``vehicles``, ``setups``, ``campaigns``, ``effects``,
-``rail_conditions``, and ``environments``, ``agents``, ``identification`` for the code that owns
-their schema), one file per named item. A user adds a vehicle or a pad material by adding a file
+``rail_conditions``, ``lines``, and ``environments``, ``agents``, ``identification`` for the code
+that owns their schema), one file per named item. A user adds a vehicle or a pad material by adding a file
 to a folder on the search path (:mod:`.library`); the file's ``name`` must equal its stem.
 Units are part of every field name.
 
@@ -40,6 +40,8 @@ from .schema import (
     FieldCampaign,
     FrictionMaterial,
     FrictionScatter,
+    Line,
+    LineSection,
     LoadCase,
     Pneumatics,
     RailCondition,
@@ -68,6 +70,8 @@ __all__ = [
     "FieldCampaign",
     "FrictionMaterial",
     "FrictionScatter",
+    "Line",
+    "LineSection",
     "LoadCase",
     "Pneumatics",
     "RunningResistance",

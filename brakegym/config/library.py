@@ -35,6 +35,7 @@ from .schema import (
     EffectSet,
     FieldCampaign,
     FrictionMaterial,
+    Line,
     Pneumatics,
     RailCondition,
     SafetyCase,
@@ -57,6 +58,7 @@ KINDS: dict[str, type[BaseModel]] = {
     "effects": EffectSet,
     "safety_cases": SafetyCase,
     "rail_conditions": RailCondition,
+    "lines": Line,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
 # brakegym.identification); found on the same search path with :func:`find`.

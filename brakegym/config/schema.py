@@ -463,3 +463,33 @@ class RailCondition(StrictModel):
     slip_reduction: float = Field(gt=0, le=1)  # k_S
     peak_adhesion: float = Field(gt=0, le=1)  # at the emu_8axle's contact, 30 m/s (a test checks it)
     static_friction_relative_sigma: float = Field(ge=0, lt=0.5)  # scatter of mu_0 per application
+
+
+class LineSection(StrictModel):
+    """A stretch of track from ``start_m`` to the next section's start, on a rail in
+    ``rail_condition`` (a name of ``configs/rail_conditions/``)."""
+
+    start_m: float = Field(ge=0)
+    rail_condition: str = Field(min_length=1)
+
+
+class Line(StrictModel):
+    """A line made of sections with different rail conditions (``configs/lines/``), e.g. a
+    low-adhesion patch from x1 to x2 of a WSP test. Positions count from where the train starts."""
+
+    name: str
+    description: str = ""
+    source: str = Field(min_length=1)
+    sections: list[LineSection] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _sections_ordered(self) -> Line:
+        if self.sections[0].start_m != 0:
+            raise ValueError(f"sections[0].start_m = {self.sections[0].start_m}: the first section must start at 0")
+        for index in range(1, len(self.sections)):
+            before, start = self.sections[index - 1].start_m, self.sections[index].start_m
+            if not start > before:
+                raise ValueError(
+                    f"sections[{index}].start_m = {start}: must lie beyond the section before it ({before})"
+                )
+        return self
