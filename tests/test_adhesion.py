@@ -13,7 +13,8 @@ import pytest
 import yaml
 
 from brakegym import config as cfg
-from brakegym.applications import TrainApplication, train_stops
+from brakegym.applications import TrainApplication, train_conditions, train_stops
+from brakegym.physics import FrictionDraw
 from brakegym.physics.adhesion import (
     PolachLaw,
     WheelRailContact,
@@ -22,9 +23,18 @@ from brakegym.physics.adhesion import (
     polach_shape,
     polach_shape_slope,
 )
-from brakegym.plants import polach_law, wheel_rail_adhesion, wheel_rail_contact
+from brakegym.plants import (
+    brake_cylinder,
+    nominal_draw,
+    polach_law,
+    train_plant,
+    wheel_rail_adhesion,
+    wheel_rail_contact,
+)
+from brakegym.simulator import CommandedPressure
 from brakegym.simulator.state import FRICTION_HEAT, POSITION, SPEED
 from brakegym.simulator.wheelsets import DEFAULT_MAX_SUBSTEP_S, AdhesionSimulator, WheelRailAdhesion
+from brakegym.simulator.wheelsets_reference import NumpyAdhesionSimulator
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -366,3 +376,141 @@ def test_unknown_rail_condition_of_a_line_names_line_and_section(config_copy):
         cfg.ConfigError, match=r"line 'low_patch', sections\[1\].rail_condition: unknown rail condition 'icy'"
     ):
         wheel_rail_adhesion(vehicle, cfg.load("lines", "low_patch"))
+
+
+# ------------------------------------------------------------------------------------------------
+# The compiled kernel against the numpy reference
+
+
+def _batch(simulator_class, adhesion: WheelRailAdhesion, n_trains: int = 5, seed: int = 7):
+    """A batch of emu_8axle stops with everything different per train and per disc: loads, speeds,
+    per-axle commands, scattered mu_0 and a; EP cylinders, step 0.2 s."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    plant = train_plant(vehicle)
+    rng = np.random.default_rng(seed)
+    nominal = nominal_draw(cfg.load("materials", vehicle.material), n_trains, plant.disc_shape)
+    shape = nominal.initial_mu.shape
+    draw = FrictionDraw(
+        initial_mu=nominal.initial_mu * (1.0 + 0.05 * rng.standard_normal(shape)),
+        power_coefficient_per_s=nominal.power_coefficient_per_s * (1.0 + 0.1 * rng.standard_normal(shape)),
+    )
+    conditions = train_conditions(
+        vehicle,
+        mass_kg=np.linspace(vehicle.mass_kg("empty"), vehicle.mass_kg("max"), n_trains),
+        initial_speed_mps=np.linspace(15.0, 45.0, n_trains),
+        draw=draw,
+        running_resistance_A_N=np.full(n_trains, vehicle.running_resistance.A_N),
+    )
+    pressure = CommandedPressure([brake_cylinder(cfg.load("pneumatics", "EP"))] * n_trains, plant.n_axles, 0.2)
+    pressure.set_command(rng.uniform(1.0, 4.0, (n_trains, plant.n_axles)))
+    return simulator_class(plant, conditions, pressure, adhesion, step_s=0.2)
+
+
+def _assert_same_states(compiled: AdhesionSimulator, reference: NumpyAdhesionSimulator) -> None:
+    for name in ("disc", "train", "wheelset", "stop_time_s"):
+        np.testing.assert_allclose(getattr(compiled, name), getattr(reference, name), rtol=1e-11, atol=1e-9)
+    np.testing.assert_array_equal(compiled.moving, reference.moving)
+
+
+@pytest.mark.parametrize("rail", ["dry", "low", "low_patch_with_axle_offsets"], ids=["dry", "low", "patch-offsets"])
+def test_compiled_adhesion_step_is_the_numpy_reference(rail):
+    """Trains stopping, standing and cooling in one batch (not held), wheels rolling, locking and
+    spinning up again on a patch with the axles spread along the train: the compiled kernel and
+    the numpy scheme agree to round-off at every step."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    if rail == "low_patch_with_axle_offsets":
+        adhesion = dataclasses.replace(
+            wheel_rail_adhesion(vehicle, cfg.load("lines", "low_patch")),
+            axle_offsets_m=tuple(np.linspace(0.0, 95.0, vehicle.n_axles)),
+        )
+    else:
+        adhesion = _adhesion(rail)
+    compiled, reference = _batch(AdhesionSimulator, adhesion), _batch(NumpyAdhesionSimulator, adhesion)
+    stopped_some, locked_some = False, False
+    for _ in range(150):
+        compiled.step()
+        reference.step()
+        _assert_same_states(compiled, reference)
+        stopped_some |= bool((~compiled.moving).any() and compiled.moving.any())
+        locked_some |= bool(((compiled.wheel_speed_mps == 0.0) & compiled.moving).any())
+    assert stopped_some
+    assert locked_some == (rail != "dry")
+
+
+def test_compiled_adhesion_holds_standing_trains_like_the_reference():
+    adhesion = _adhesion("low")
+    compiled, reference = _batch(AdhesionSimulator, adhesion), _batch(NumpyAdhesionSimulator, adhesion)
+    for sim in (compiled, reference):
+        sim.hold_standing_trains = True
+        sim.step(250)
+    _assert_same_states(compiled, reference)
+    standing = ~compiled.moving
+    assert standing.any()
+    before = compiled.disc[..., standing].copy()
+    compiled.step()
+    np.testing.assert_array_equal(compiled.disc[..., standing], before)
+
+
+def test_compiled_adhesion_is_the_same_bit_for_bit_run_again():
+    adhesion = _adhesion("low")
+    first, second = _batch(AdhesionSimulator, adhesion), _batch(AdhesionSimulator, adhesion)
+    first.step(60)
+    second.step(60)
+    for name in ("disc", "train", "wheelset"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
+
+
+def test_reset_trains_starts_those_trains_afresh():
+    """A reset train runs on as a new simulator's train would, bit for bit (its body mass, wheel
+    loads and wheel speeds set again); the other trains go on as if nothing happened."""
+    adhesion = _adhesion("low")
+    sim, fresh, untouched = (_batch(AdhesionSimulator, adhesion) for _ in range(3))
+    sim.step(40)
+    untouched.step(40)
+    index = np.array([0])
+    conditions = dataclasses.replace(
+        sim.conditions,
+        **{
+            field.name: np.asarray(getattr(sim.conditions, field.name))[index]
+            for field in dataclasses.fields(sim.conditions)
+        },
+    )
+    sim.reset_trains(index, conditions)
+    sim.pressure.reset_trains(index)
+    sim.pressure.set_command(
+        np.where(np.arange(sim.n_trains)[:, None] == 0, fresh.pressure.command_bar, sim.pressure.command_bar)
+    )
+    np.testing.assert_array_equal(sim.wheelset[..., 0], fresh.wheelset[..., 0])
+    sim.step(30)
+    fresh.step(30)
+    untouched.step(30)
+    for name in ("disc", "train", "wheelset"):
+        np.testing.assert_array_equal(getattr(sim, name)[..., 0], getattr(fresh, name)[..., 0])
+        np.testing.assert_array_equal(getattr(sim, name)[..., 1:], getattr(untouched, name)[..., 1:])
+    assert (sim.wheel_speed_mps[:, 0] == 0.0).any()  # the reset train's wheels locked again
+
+
+def test_deceleration_is_the_rail_forces_over_the_body_mass():
+    """With adhesion the brake acts on the wheels: the body decelerates by the creep forces and
+    the running resistance (at the state of any step, given its wheel speeds), not by the disc
+    friction the simulator without adhesion would report."""
+    sim = _batch(AdhesionSimulator, _adhesion("low"))
+    sim.step(30)
+    train, wheels = sim.train.copy(), sim.wheel_speed_mps.copy()
+    law = sim.adhesion.law_at(train[POSITION])
+    forces = sim.creep_force_N(train[SPEED], wheels, law).sum(axis=0)
+    resistance = sim.plant.running_resistance.force_N(train[SPEED], sim.resistance_A_N)
+    expected = np.where(sim.moving, (forces + resistance) / sim.body_mass_kg, 0.0)
+    np.testing.assert_array_equal(sim.deceleration_mps2(), expected)
+    # Bounded by the rail: the peak adhesion of the low rail times the weight over the body mass.
+    peak = cfg.load("rail_conditions", "low").peak_adhesion
+    assert np.all(
+        sim.deceleration_mps2() <= (1.05 * peak * sim.mass_kg * STANDARD_GRAVITY_MPS2 + resistance) / sim.body_mass_kg
+    )
+    moving = sim.moving.copy()
+    sim.step()
+    np.testing.assert_array_equal(
+        sim.deceleration_at_mps2(sim.disc, train, moving, sim.pressure.pressure_bar, wheels), expected
+    )
+    with pytest.raises(ValueError, match="wheel_speed_mps"):
+        sim.deceleration_at_mps2(sim.disc, train, moving, sim.pressure.pressure_bar)

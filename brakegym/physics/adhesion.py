@@ -89,6 +89,25 @@ def adhesion_coefficient(
     return np.sign(creep_) * (2.0 / np.pi) * friction * polach_shape(gradient, adhesion_reduction, slip_reduction)
 
 
+def creep_slope_at_fixed_friction(
+    creep_,
+    slip_speed_mps,
+    wheel_load_N,
+    creep_stiffness_N_,
+    static_friction,
+    friction_ratio_at_infinity,
+    friction_decay_s_per_m,
+    adhesion_reduction,
+    slip_reduction,
+):
+    """d(F / Q) / ds with mu held at mu(w), clipped at zero: the stiff, stabilising part of the
+    law's slope (the falling friction mu(w) is the slow part, left out)."""
+    friction = friction_coefficient(slip_speed_mps, static_friction, friction_ratio_at_infinity, friction_decay_s_per_m)
+    gradient = stress_gradient(creep_, creep_stiffness_N_, wheel_load_N, friction)
+    slope = polach_shape_slope(gradient, adhesion_reduction, slip_reduction)
+    return np.maximum((2.0 / np.pi) * creep_stiffness_N_ / wheel_load_N * slope, 0.0)
+
+
 @dataclass(frozen=True)
 class PolachLaw:
     """Polach's creep-force law of one rail condition (Polach 2005, Eqs. 11 and 20)."""
@@ -123,12 +142,18 @@ class PolachLaw:
         return wheel_load_N * self.adhesion_coefficient(creep_, slip_speed_mps, wheel_load_N, creep_stiffness_N_)
 
     def creep_slope_at_fixed_friction(self, creep_, slip_speed_mps, wheel_load_N, creep_stiffness_N_):
-        """d(F / Q) / ds with mu held at mu(w), clipped at zero: the stiff, stabilising part of the
-        law's slope (the falling friction mu(w) is the slow part, left out)."""
-        friction = self.friction(slip_speed_mps)
-        gradient = stress_gradient(creep_, creep_stiffness_N_, wheel_load_N, friction)
-        slope = polach_shape_slope(gradient, self.adhesion_reduction, self.slip_reduction)
-        return np.maximum((2.0 / np.pi) * creep_stiffness_N_ / wheel_load_N * slope, 0.0)
+        """d(F / Q) / ds at fixed friction (:func:`creep_slope_at_fixed_friction`)."""
+        return creep_slope_at_fixed_friction(
+            creep_,
+            slip_speed_mps,
+            wheel_load_N,
+            creep_stiffness_N_,
+            self.static_friction,
+            self.friction_ratio_at_infinity,
+            self.friction_decay_s_per_m,
+            self.adhesion_reduction,
+            self.slip_reduction,
+        )
 
     def peak_adhesion(self, speed_mps, wheel_load_N, creep_stiffness_N_, max_creep=1.0, n_creeps=20001):
         """(the largest F / Q, the creep where it lies) at train speed ``speed_mps``, searched on a
