@@ -101,7 +101,8 @@ def train_monte_carlo(
     merged = {
         name: scatter_back(n, indices, [getattr(p, name) for p in parts])
         for name in StopSummary.__dataclass_fields__
-        if name != "trajectory"
+        # Left at their defaults: no trajectories in a campaign, no slip work without adhesion.
+        if name != "trajectory" and getattr(parts[0], name) is not None
     }
     return StopSummary(**merged), draw, resistance
 

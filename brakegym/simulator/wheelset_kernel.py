@@ -121,6 +121,15 @@ _compiled = kernel.stamped_compiler(
     kernel.cache_sources_digest((*kernel.KERNEL_CACHE_SOURCES, Path(__file__).resolve()))
 )
 
+
+def _compiled_threaded(function):
+    return _compiled(function, parallel=True)
+
+
+#: A batch is shared out over threads only with at least this many trains per thread: a train's
+#: step costs some 10 us, a thread's start some more.
+TRAINS_PER_THREAD = 8
+
 # Columns of the section table (S, N_LAW_PARAMETERS): Polach's parameters of each section's law.
 (
     STATIC_FRICTION,
@@ -595,8 +604,22 @@ def _step_trains(first, end_train, arguments, start, moving, hold_standing, end,
 
 
 @_compiled
-def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop_fraction):
-    """One step of every train with wheel-rail adhesion (:class:`~.wheelsets.AdhesionSimulator`).
+def _adhesion_step_serial(arguments, start, moving, hold_standing, end, moving_end, stop_fraction):
+    _step_trains(0, moving.shape[0], arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
+
+
+@_compiled_threaded
+def _adhesion_step_threaded(n_threads, arguments, start, moving, hold_standing, end, moving_end, stop_fraction):
+    """:func:`adhesion_step` on ``n_threads`` threads, each a consecutive run of trains."""
+    n_trains = moving.shape[0]
+    for thread in numba.prange(n_threads):
+        first, end_train = thread * n_trains // n_threads, (thread + 1) * n_trains // n_threads
+        _step_trains(first, end_train, arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
+
+
+def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop_fraction) -> None:
+    """One step of every train with wheel-rail adhesion (:class:`~.wheelsets.AdhesionSimulator`),
+    on up to :func:`.kernel.kernel_threads` threads (one per ``TRAINS_PER_THREAD`` trains at least).
 
     ``arguments``: (plant parameters (:func:`.kernel.plant_parameters`), scheme parameters
     (N_SCHEME_PARAMETERS,), power coefficients (A, k, B), train constants (N_TRAIN_CONSTANTS, B),
@@ -606,4 +629,8 @@ def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop
     wheelset) states before and after the step. With ``hold_standing`` a train standing at the
     start keeps its state. Writes ``moving_end`` and ``stop_fraction`` (nan where no train
     stopped)."""
-    _step_trains(0, moving.shape[0], arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
+    n_threads = min(kernel.kernel_threads(), moving.shape[0] // TRAINS_PER_THREAD)
+    if n_threads > 1:
+        _adhesion_step_threaded(n_threads, arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
+    else:
+        _adhesion_step_serial(arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
