@@ -25,6 +25,7 @@ from .physics import (
     ScatterPartition,
     StochasticFriction,
     WheelRailContact,
+    WheelSlideProtectionValve,
     draw_friction,
     draw_running_resistance,
 )
@@ -89,6 +90,17 @@ def caliper_law(caliper: cfg.Caliper) -> CaliperLaw:
 def brake_cylinder(pneumatics: cfg.Pneumatics) -> BrakeCylinder:
     """Spec Section 4's cylinder response of an actuation (EP, PN)."""
     return BrakeCylinder(dead_time_s=pneumatics.dead_time_s, time_constant_s=pneumatics.time_constant_s)
+
+
+def wsp_valve(valves: cfg.WspValves) -> WheelSlideProtectionValve:
+    """The dump and refill rates of a WSP valve set."""
+    return WheelSlideProtectionValve(valves.dump_rate_bar_per_s, valves.refill_rate_bar_per_s)
+
+
+def valve_of_axle(vehicle: cfg.Vehicle, valves: cfg.WspValves) -> np.ndarray:
+    """Which valve each axle of ``vehicle`` hangs on (A,): its own, or its bogie's."""
+    axles = np.arange(vehicle.n_axles)
+    return axles if valves.valve_per == "axle" else axles // vehicle.axles_per_bogie
 
 
 def polach_law(condition: cfg.RailCondition) -> PolachLaw:

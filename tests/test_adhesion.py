@@ -8,6 +8,7 @@ import math
 import shutil
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 import yaml
@@ -31,7 +32,7 @@ from brakegym.plants import (
     wheel_rail_adhesion,
     wheel_rail_contact,
 )
-from brakegym.simulator import CommandedPressure
+from brakegym.simulator import CommandedPressure, kernel, wheelset_kernel
 from brakegym.simulator.state import FRICTION_HEAT, POSITION, SPEED
 from brakegym.simulator.wheelsets import DEFAULT_MAX_SUBSTEP_S, AdhesionSimulator, WheelRailAdhesion
 from brakegym.simulator.wheelsets_reference import NumpyAdhesionSimulator
@@ -451,13 +452,22 @@ def test_compiled_adhesion_holds_standing_trains_like_the_reference():
     np.testing.assert_array_equal(compiled.disc[..., standing], before)
 
 
-def test_compiled_adhesion_is_the_same_bit_for_bit_run_again():
+def test_compiled_adhesion_is_the_same_bit_for_bit_run_again_on_any_number_of_threads():
     adhesion = _adhesion("low")
-    first, second = _batch(AdhesionSimulator, adhesion), _batch(AdhesionSimulator, adhesion)
-    first.step(60)
-    second.step(60)
-    for name in ("disc", "train", "wheelset"):
-        np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
+    n_trains = 3 * wheelset_kernel.TRAINS_PER_THREAD
+    threads = kernel.kernel_threads()
+    try:
+        runs = []
+        for n_threads in (1, 2, 1):
+            kernel.set_kernel_threads(min(n_threads, numba.config.NUMBA_NUM_THREADS))
+            sim = _batch(AdhesionSimulator, adhesion, n_trains=n_trains)
+            sim.step(60)
+            runs.append(sim)
+    finally:
+        kernel.set_kernel_threads(threads)
+    for sim in runs[1:]:
+        for name in ("disc", "train", "wheelset"):
+            np.testing.assert_array_equal(getattr(sim, name), getattr(runs[0], name))
 
 
 def test_reset_trains_starts_those_trains_afresh():

@@ -2,7 +2,7 @@
 
 Every physical constant of the simulator lives in a YAML file, one folder per kind (``materials``,
 ``discs``, ``pneumatics``, ``rigs``, ``vehicles``, ``setups``, ``campaigns``, ``effects``,
-``rail_conditions``, ``lines``, and ``environments``, ``agents``, ``identification`` for the code
+``rail_conditions``, ``lines``, ``wsp_valves``, and ``environments``, ``agents``, ``identification`` for the code
 that owns their schema), one file per named item. A user adds a vehicle or a pad material by adding a file
 to a folder on the search path (:mod:`.library`); the file's ``name`` must equal its stem.
 Units are part of every field name.
@@ -52,6 +52,7 @@ from .schema import (
     Vehicle,
     VehicleLoad,
     Wheelsets,
+    WspValves,
 )
 
 __all__ = [
@@ -81,6 +82,7 @@ __all__ = [
     "StrictModel",
     "Vehicle",
     "Wheelsets",
+    "WspValves",
     "VehicleLoad",
     "available",
     "config_path",

@@ -41,6 +41,7 @@ from .schema import (
     SafetyCase,
     ScatterSetup,
     Vehicle,
+    WspValves,
 )
 
 CONFIG_PATH_ENV = "BRAKEGYM_CONFIG_PATH"
@@ -59,6 +60,7 @@ KINDS: dict[str, type[BaseModel]] = {
     "safety_cases": SafetyCase,
     "rail_conditions": RailCondition,
     "lines": Line,
+    "wsp_valves": WspValves,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
 # brakegym.identification); found on the same search path with :func:`find`.
@@ -67,6 +69,7 @@ OTHER_KINDS = ("environments", "agents", "identification")
 _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
     "safety_cases": "safety case",
     "rail_conditions": "rail condition",
+    "wsp_valves": "WSP valve set",
     "agents": "agent config",
     "identification": "identification config",
 }

@@ -102,6 +102,19 @@ class Pneumatics(StrictModel):
     time_constant_s: float = Field(gt=0)
 
 
+class WspValves(StrictModel):
+    """Wheel-slide protection valves (``configs/wsp_valves/``): one per axle or per bogie, and the
+    rates at which they dump and refill the cylinder pressure (docs/adhesion.md), with where the
+    numbers come from (a document, or ``ASSUMED: <why>``)."""
+
+    name: str
+    description: str = ""
+    source: str = Field(min_length=1)
+    valve_per: Literal["axle", "bogie"]
+    dump_rate_bar_per_s: float = Field(gt=0)
+    refill_rate_bar_per_s: float = Field(gt=0)
+
+
 class LoadCase(StrictModel):
     """One dynamometer load case of paper Table 1."""
 

@@ -15,7 +15,7 @@ job), and nothing here reads configs: :mod:`brakegym.plants` builds these object
 from .adhesion import PolachLaw, RailSections, WheelRailContact
 from .friction import FrictionLaw
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
-from .pneumatics import BrakeCylinder, CaliperLaw
+from .pneumatics import BrakeCylinder, CaliperLaw, WheelSlideProtectionValve
 from .scatter import (
     FrictionDraw,
     ScatterPartition,
@@ -28,6 +28,7 @@ from .thermal import CooledSurface, DiscThermalModel, HeatFlows
 
 __all__ = [
     "BrakeCylinder",
+    "WheelSlideProtectionValve",
     "CaliperLaw",
     "CooledSurface",
     "DiscThermalModel",

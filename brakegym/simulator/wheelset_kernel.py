@@ -612,9 +612,32 @@ def _adhesion_step_serial(arguments, start, moving, hold_standing, end, moving_e
 def _adhesion_step_threaded(n_threads, arguments, start, moving, hold_standing, end, moving_end, stop_fraction):
     """:func:`adhesion_step` on ``n_threads`` threads, each a consecutive run of trains."""
     n_trains = moving.shape[0]
+    # Tuples of arrays do not enter a parallel loop's body: unpacked here, packed again inside it.
+    parameters, scheme, power_coefficient, train_constants, wheelset_constants, rail, stage_pressure_bar = arguments
+    section_starts_m, laws, axle_offsets_m = rail
+    disc0, train0, wheelset0 = start
+    disc1, train1, wheelset1 = end
     for thread in numba.prange(n_threads):
         first, end_train = thread * n_trains // n_threads, (thread + 1) * n_trains // n_threads
-        _step_trains(first, end_train, arguments, start, moving, hold_standing, end, moving_end, stop_fraction)
+        _step_trains(
+            first,
+            end_train,
+            (
+                parameters,
+                scheme,
+                power_coefficient,
+                train_constants,
+                wheelset_constants,
+                (section_starts_m, laws, axle_offsets_m),
+                stage_pressure_bar,
+            ),
+            (disc0, train0, wheelset0),
+            moving,
+            hold_standing,
+            (disc1, train1, wheelset1),
+            moving_end,
+            stop_fraction,
+        )
 
 
 def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop_fraction) -> None:
