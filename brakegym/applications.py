@@ -39,6 +39,7 @@ from .simulator.state import (
     T_DISC,
     T_FRIC,
 )
+from .simulator.wheelsets import SLIP_WORK, AdhesionSimulator, WheelRailAdhesion
 from .units import ZERO_CELSIUS_K, kmh_to_mps
 
 MAX_STOP_TIME_S = 900.0
@@ -118,6 +119,8 @@ class StopSummary:
     stored_heat_J: np.ndarray  # (B, discs), C dT of both capacities at the end
     cooling_heat_J: np.ndarray  # (B, discs), heat given to the air
     trajectory: Trajectory | None = None
+    # With wheel-rail adhesion (docs/adhesion.md) only: the treads' slip work on the rail, per axle.
+    slip_work_J: np.ndarray | None = None  # (B, axles)
 
     @property
     def mean_mu_s(self) -> np.ndarray:
@@ -202,6 +205,7 @@ def run_stops(
         stored_heat_J=sim.to_external(_stored_heat_J(sim) - initial_heat),
         cooling_heat_J=sim.to_external(sim.disc[COOLING_HEAT]),
         trajectory=recorder.result() if recorder else None,
+        slip_work_J=sim.wheelset[SLIP_WORK].T.copy() if isinstance(sim, AdhesionSimulator) else None,
     )
 
 
@@ -252,12 +256,19 @@ def run_commanded_stops(
     progress: Callable[[int], None] | None = None,
     max_time_s: float = MAX_STOP_TIME_S,
     observers: Sequence[StepObserver] = (),
+    adhesion: WheelRailAdhesion | None = None,
 ) -> StopSummary:
-    """Run a batch of stops, each with a constant command (B, A) switched on at its own time."""
+    """Run a batch of stops, each with a constant command (B, A) switched on at its own time;
+    with ``adhesion``, on wheelsets that creep on the rail (docs/adhesion.md; no hooks then)."""
     pressure = CommandedPressure(cylinders, plant.n_axles, step_s)
-    sim = Simulator(
-        plant, conditions, pressure, step_s=step_s, extra_forces=extra_forces, friction_modifiers=friction_modifiers
-    )
+    if adhesion is None:
+        sim = Simulator(
+            plant, conditions, pressure, step_s=step_s, extra_forces=extra_forces, friction_modifiers=friction_modifiers
+        )
+    elif extra_forces or friction_modifiers:
+        raise ValueError("the adhesion option runs without extra forces and friction modifiers (docs/adhesion.md)")
+    else:
+        sim = AdhesionSimulator(plant, conditions, pressure, adhesion, step_s=step_s)
     schedule = CommandSchedule(pressure, command, np.asarray(command_time_s, dtype=float), step_s)
     return run_stops(
         sim,
@@ -369,9 +380,12 @@ def train_stops(
     extra_forces: Sequence[ExtraForce] = (),
     friction_modifiers: Sequence[FrictionModifier] = (),
     progress: Callable[[int], None] | None = None,
+    adhesion: WheelRailAdhesion | None = None,
+    observers: Sequence[StepObserver] = (),
 ) -> StopSummary:
     """Stops of ``vehicle``, one per application: the brake mode's cylinder pressure for the
-    load on every axle, through the application's actuation (EP or PN)."""
+    load on every axle, through the application's actuation (EP or PN). ``adhesion``
+    (:func:`brakegym.plants.wheel_rail_adhesion`) switches on the wheel-rail adhesion option."""
     plant = train_plant(vehicle)
     material = cfg.load("materials", vehicle.material)
     n = len(applications)
@@ -404,4 +418,6 @@ def train_stops(
         extra_forces=extra_forces,
         friction_modifiers=friction_modifiers,
         progress=progress,
+        adhesion=adhesion,
+        observers=observers,
     )

@@ -19,15 +19,20 @@ from .physics import (
     DiscThermalModel,
     FrictionDraw,
     FrictionLaw,
+    PolachLaw,
+    RailSections,
     RunningResistanceLaw,
     ScatterPartition,
     StochasticFriction,
+    WheelRailContact,
+    WheelSlideProtectionValve,
     draw_friction,
     draw_running_resistance,
     friction_from_normals,
     running_resistance_from_normals,
 )
 from .simulator import Plant
+from .simulator.wheelsets import WheelRailAdhesion
 
 
 def friction_law(material: cfg.FrictionMaterial) -> FrictionLaw:
@@ -87,6 +92,62 @@ def caliper_law(caliper: cfg.Caliper) -> CaliperLaw:
 def brake_cylinder(pneumatics: cfg.Pneumatics) -> BrakeCylinder:
     """Spec Section 4's cylinder response of an actuation (EP, PN)."""
     return BrakeCylinder(dead_time_s=pneumatics.dead_time_s, time_constant_s=pneumatics.time_constant_s)
+
+
+def wsp_valve(valves: cfg.WspValves) -> WheelSlideProtectionValve:
+    """The dump and refill rates of a WSP valve set."""
+    return WheelSlideProtectionValve(valves.dump_rate_bar_per_s, valves.refill_rate_bar_per_s)
+
+
+def valve_of_axle(vehicle: cfg.Vehicle, valves: cfg.WspValves) -> np.ndarray:
+    """Which valve each axle of ``vehicle`` hangs on (A,): its own, or its bogie's."""
+    axles = np.arange(vehicle.n_axles)
+    return axles if valves.valve_per == "axle" else axles // vehicle.axles_per_bogie
+
+
+def polach_law(condition: cfg.RailCondition) -> PolachLaw:
+    """Polach's creep-force law of a rail condition (docs/adhesion.md)."""
+    return PolachLaw(
+        static_friction=condition.static_friction,
+        friction_ratio_at_infinity=condition.friction_ratio_at_infinity,
+        friction_decay_s_per_m=condition.friction_decay_s_per_m,
+        adhesion_reduction=condition.adhesion_reduction,
+        slip_reduction=condition.slip_reduction,
+    )
+
+
+def wheel_rail_contact(vehicle: cfg.Vehicle) -> WheelRailContact:
+    """The Hertz contact of the vehicle's wheels on the rail (docs/adhesion.md)."""
+    contact = vehicle.wheelsets.contact
+    return WheelRailContact(
+        semi_axis_a_m=contact.semi_axis_a_m,
+        semi_axis_b_m=contact.semi_axis_b_m,
+        reference_wheel_load_N=contact.reference_wheel_load_N,
+        kalker_c11=contact.kalker_c11,
+        shear_modulus_Pa=contact.shear_modulus_Pa,
+    )
+
+
+def rail_sections(line: cfg.Line) -> RailSections:
+    """The creep-force law of each section of ``line``; an unknown rail condition names the line
+    and the section."""
+    laws = []
+    for index, section in enumerate(line.sections):
+        try:
+            laws.append(polach_law(cfg.load("rail_conditions", section.rail_condition)))
+        except cfg.ConfigError as error:
+            raise cfg.ConfigError(f"line {line.name!r}, sections[{index}].rail_condition: {error}") from None
+    return RailSections(starts_m=tuple(section.start_m for section in line.sections), laws=tuple(laws))
+
+
+def wheel_rail_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line) -> WheelRailAdhesion:
+    """The adhesion option of ``vehicle`` on a rail in one condition or on a line of sections
+    (docs/adhesion.md)."""
+    return WheelRailAdhesion(
+        law=rail_sections(rail) if isinstance(rail, cfg.Line) else polach_law(rail),
+        contact=wheel_rail_contact(vehicle),
+        wheelset_inertia_kgm2=vehicle.wheelsets.inertia_kgm2,
+    )
 
 
 # ------------------------------------------------------------------------------------------------

@@ -344,7 +344,8 @@ def train_monte_carlo(
     merged = {
         name: np.concatenate([getattr(part, name) for part in parts])
         for name in StopSummary.__dataclass_fields__
-        if name != "trajectory"
+        # Left at their defaults: no trajectories in a campaign, no slip work without adhesion.
+        if name != "trajectory" and getattr(parts[0], name) is not None
     }
     draw, resistance = train_scatter(vehicle, setup).draw_for_samples(seed, np.arange(n))
     return StopSummary(**merged), draw, resistance

@@ -1,10 +1,11 @@
 """Validated configuration files.
 
 Every physical constant of the simulator lives in a YAML file, one folder per kind (``materials``,
-``discs``, ``pneumatics``, ``rigs``, ``vehicles``, ``setups``, ``campaigns``, ``effects``, and
-``environments``, ``agents``, ``identification`` for the code that owns their schema), one file per
-named item. A user adds a vehicle or a pad material by adding a file to a folder on the search path
-(:mod:`.library`); the file's ``name`` must equal its stem. Units are part of every field name.
+``discs``, ``pneumatics``, ``rigs``, ``vehicles``, ``setups``, ``campaigns``, ``effects``,
+``rail_conditions``, ``lines``, ``wsp_valves``, and ``environments``, ``agents``, ``identification`` for the code
+that owns their schema), one file per named item. A user adds a vehicle or a pad material by adding a file
+to a folder on the search path (:mod:`.library`); the file's ``name`` must equal its stem.
+Units are part of every field name.
 
 Loading validates with pydantic (:mod:`.schema`); any problem raises :class:`ConfigError` naming
 the file, the field and the offending value.
@@ -39,14 +40,19 @@ from .schema import (
     FieldCampaign,
     FrictionMaterial,
     FrictionScatter,
+    Line,
+    LineSection,
     LoadCase,
     Pneumatics,
+    RailCondition,
     RunningResistance,
     SafetyCase,
     ScatterSetup,
     StrictModel,
     Vehicle,
     VehicleLoad,
+    Wheelsets,
+    WspValves,
 )
 
 __all__ = [
@@ -65,13 +71,18 @@ __all__ = [
     "FieldCampaign",
     "FrictionMaterial",
     "FrictionScatter",
+    "Line",
+    "LineSection",
     "LoadCase",
     "Pneumatics",
     "RunningResistance",
+    "RailCondition",
     "SafetyCase",
     "ScatterSetup",
     "StrictModel",
     "Vehicle",
+    "Wheelsets",
+    "WspValves",
     "VehicleLoad",
     "available",
     "config_path",

@@ -35,10 +35,13 @@ from .schema import (
     EffectSet,
     FieldCampaign,
     FrictionMaterial,
+    Line,
     Pneumatics,
+    RailCondition,
     SafetyCase,
     ScatterSetup,
     Vehicle,
+    WspValves,
 )
 
 CONFIG_PATH_ENV = "BRAKEGYM_CONFIG_PATH"
@@ -55,6 +58,9 @@ KINDS: dict[str, type[BaseModel]] = {
     "campaigns": FieldCampaign,
     "effects": EffectSet,
     "safety_cases": SafetyCase,
+    "rail_conditions": RailCondition,
+    "lines": Line,
+    "wsp_valves": WspValves,
 }
 # Kinds whose schema lives with the code that uses them (brakegym.envs, brakegym.agents,
 # brakegym.identification, brakegym.recordings); found on the same search path with :func:`find`.
@@ -62,6 +68,8 @@ OTHER_KINDS = ("environments", "agents", "identification", "measurement_chains",
 # How messages name one config of a kind.
 _ONE_OF_KIND = {kind: kind[:-1] for kind in [*KINDS, "environments"]} | {
     "safety_cases": "safety case",
+    "rail_conditions": "rail condition",
+    "wsp_valves": "WSP valve set",
     "agents": "agent config",
     "identification": "identification config",
     "measurement_chains": "measurement chain",

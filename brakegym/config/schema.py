@@ -102,6 +102,19 @@ class Pneumatics(StrictModel):
     time_constant_s: float = Field(gt=0)
 
 
+class WspValves(StrictModel):
+    """Wheel-slide protection valves (``configs/wsp_valves/``): one per axle or per bogie, and the
+    rates at which they dump and refill the cylinder pressure (docs/adhesion.md), with where the
+    numbers come from (a document, or ``ASSUMED: <why>``)."""
+
+    name: str
+    description: str = ""
+    source: str = Field(min_length=1)
+    valve_per: Literal["axle", "bogie"]
+    dump_rate_bar_per_s: float = Field(gt=0)
+    refill_rate_bar_per_s: float = Field(gt=0)
+
+
 class LoadCase(StrictModel):
     """One dynamometer load case of paper Table 1."""
 
@@ -177,6 +190,30 @@ class Caliper(StrictModel):
     threshold_bar: float = Field(ge=0)
 
 
+class WheelRailContactConfig(StrictModel):
+    """The Hertz contact of the vehicle's wheel on the rail (docs/adhesion.md): semi-axes a (rolling
+    direction) and b at a reference wheel load, scaled with the cube root of the load; Kalker's
+    c_11 for its b / a; the shear modulus of wheel and rail steel. The defaults are the emu_8axle's
+    (ASSUMED: Hertz for a 0.46 m wheel on a rail head of 0.3 m crown radius at 75 kN, E = 210 GPa,
+    Poisson 0.28; c_11 from Kalker's tables for b / a about 0.75)."""
+
+    semi_axis_a_m: float = Field(default=0.0065, gt=0)
+    semi_axis_b_m: float = Field(default=0.0049, gt=0)
+    reference_wheel_load_N: float = Field(default=75e3, gt=0)
+    kalker_c11: float = Field(default=3.9, gt=0)
+    shear_modulus_Pa: float = Field(default=8.0e10, gt=0)
+
+
+class Wheelsets(StrictModel):
+    """What the adhesion option needs of a vehicle's wheelsets (docs/adhesion.md). The default
+    inertia is ASSUMED: the spin inertia of the Manchester benchmark wheelset (about 110 kg m^2)
+    plus two axle-mounted brake discs. The vehicle's loads are effective masses that include this
+    inertia (the body mass is m - n_axles J / r^2 with the option on), so it must stay below them."""
+
+    inertia_kgm2: float = Field(default=130.0, gt=0)
+    contact: WheelRailContactConfig = WheelRailContactConfig()
+
+
 BrakeMode = Literal["emergency", "service"]
 
 
@@ -199,6 +236,7 @@ class Vehicle(StrictModel):
     brake_pressures_bar: dict[BrakeMode, dict[str, float]]
     ambient_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
     initial_disc_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
+    wheelsets: Wheelsets = Wheelsets()
 
     @model_validator(mode="after")
     def _pressures_consistent(self) -> Vehicle:
@@ -212,6 +250,13 @@ class Vehicle(StrictModel):
                         f"{where} = {pressure}: must lie in 0..max_cylinder_pressure_bar "
                         f"({self.max_cylinder_pressure_bar})"
                     )
+        rotating_mass_kg = self.n_axles * self.wheelsets.inertia_kgm2 / self.wheel_radius_m**2
+        for load, values in self.loads.items():
+            if not rotating_mass_kg < self.n_discs * values.mass_per_disc_kg:
+                raise ValueError(
+                    f"wheelsets.inertia_kgm2 = {self.wheelsets.inertia_kgm2}: the wheelsets' equivalent mass "
+                    f"{rotating_mass_kg:.0f} kg must be below the train mass of load {load!r}"
+                )
         return self
 
     @property
@@ -412,4 +457,52 @@ class EffectSet(StrictModel):
         repeated = sorted({i for i in ids if ids.count(i) > 1})
         if repeated:
             raise ValueError(f"effects: {repeated} appear more than once")
+        return self
+
+
+class RailCondition(StrictModel):
+    """A condition of the rail (``configs/rail_conditions/``): the parameters of Polach's
+    creep-force law (docs/adhesion.md; O. Polach, Wear 258 (2005) 992-1000), the peak adhesion the
+    condition stands for, its scatter, and where the numbers come from (a document, or
+    ``ASSUMED: <why>``)."""
+
+    name: str
+    description: str = ""
+    source: str = Field(min_length=1)
+    static_friction: float = Field(gt=0, le=1)  # mu_0
+    friction_ratio_at_infinity: float = Field(gt=0, le=1)  # A = mu_inf / mu_0
+    friction_decay_s_per_m: float = Field(ge=0)  # B
+    adhesion_reduction: float = Field(gt=0, le=1)  # k_A
+    slip_reduction: float = Field(gt=0, le=1)  # k_S
+    peak_adhesion: float = Field(gt=0, le=1)  # at the emu_8axle's contact, 30 m/s (a test checks it)
+    static_friction_relative_sigma: float = Field(ge=0, lt=0.5)  # scatter of mu_0 per application
+
+
+class LineSection(StrictModel):
+    """A stretch of track from ``start_m`` to the next section's start, on a rail in
+    ``rail_condition`` (a name of ``configs/rail_conditions/``)."""
+
+    start_m: float = Field(ge=0)
+    rail_condition: str = Field(min_length=1)
+
+
+class Line(StrictModel):
+    """A line made of sections with different rail conditions (``configs/lines/``), e.g. a
+    low-adhesion patch from x1 to x2 of a WSP test. Positions count from where the train starts."""
+
+    name: str
+    description: str = ""
+    source: str = Field(min_length=1)
+    sections: list[LineSection] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _sections_ordered(self) -> Line:
+        if self.sections[0].start_m != 0:
+            raise ValueError(f"sections[0].start_m = {self.sections[0].start_m}: the first section must start at 0")
+        for index in range(1, len(self.sections)):
+            before, start = self.sections[index - 1].start_m, self.sections[index].start_m
+            if not start > before:
+                raise ValueError(
+                    f"sections[{index}].start_m = {start}: must lie beyond the section before it ({before})"
+                )
         return self

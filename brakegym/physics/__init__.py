@@ -3,6 +3,7 @@
 - :mod:`.friction`: the dynamic coefficient of friction of one disc unit (paper Eq. 4).
 - :mod:`.thermal`: the two-capacity disc temperature model (paper Eqs. 5-10).
 - :mod:`.mechanics`: brake force, sliding speed and running resistance (paper Eqs. 11, 12, 14).
+- :mod:`.adhesion`: wheel-rail creep and Polach's creep-force law (docs/adhesion.md; issue 16).
 - :mod:`.pneumatics`: brake cylinder (dead time and lag) and caliper (spec Section 4).
 - :mod:`.scatter`: the stochastic friction set-ups DS, MCS-100, MCS-75/25 (paper Eq. 13).
 
@@ -11,9 +12,10 @@ then axles and the discs of each axle. Nothing here integrates in time (that is 
 job), and nothing here reads configs: :mod:`brakegym.plants` builds these objects from them.
 """
 
+from .adhesion import PolachLaw, RailSections, WheelRailContact
 from .friction import FrictionLaw
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
-from .pneumatics import BrakeCylinder, CaliperLaw
+from .pneumatics import BrakeCylinder, CaliperLaw, WheelSlideProtectionValve
 from .scatter import (
     FrictionDraw,
     ScatterPartition,
@@ -27,15 +29,19 @@ from .thermal import CooledSurface, DiscThermalModel, HeatFlows
 
 __all__ = [
     "BrakeCylinder",
+    "WheelSlideProtectionValve",
     "CaliperLaw",
     "CooledSurface",
     "DiscThermalModel",
     "FrictionDraw",
     "FrictionLaw",
     "HeatFlows",
+    "PolachLaw",
+    "RailSections",
     "RunningResistanceLaw",
     "ScatterPartition",
     "StochasticFriction",
+    "WheelRailContact",
     "brake_force_N",
     "draw_friction",
     "draw_running_resistance",

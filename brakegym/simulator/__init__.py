@@ -8,6 +8,8 @@
   every core (:func:`set_kernel_threads` to use fewer).
 - :mod:`.reference`: :class:`NumpyReferenceSimulator`, the same model in numpy.
 - :mod:`.metrics`: per-application stop summaries (paper Eqs. 3 and 15).
+- :mod:`.wheelsets`: :class:`~.wheelsets.AdhesionSimulator`, the wheel-rail adhesion option (numpy;
+  docs/adhesion.md).
 """
 
 from .hooks import ExtraForce, FrictionModifier, StageContext

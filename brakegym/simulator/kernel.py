@@ -202,6 +202,10 @@ _CACHE_SOURCES = (
 )
 
 
+#: What the kernels' disk cache is stamped with: kernels elsewhere that call into these add theirs.
+KERNEL_CACHE_SOURCES = _CACHE_SOURCES
+
+
 def cache_sources_digest(paths=_CACHE_SOURCES) -> str:
     """SHA-256 over the contents of ``paths``: the stamp of the kernels' disk cache."""
     digest = hashlib.sha256()
@@ -215,32 +219,35 @@ def cache_sources_digest(paths=_CACHE_SOURCES) -> str:
 _SOURCES_DIGEST = cache_sources_digest()
 
 
-class _SourcesStamp:
-    def get_source_stamp(self):
-        return _SOURCES_DIGEST
+def stamped_compiler(sources_digest: str):
+    """A decorator like ``numba.njit(cache=True, parallel=...)`` whose disk cache is stamped with
+    ``sources_digest`` (:func:`cache_sources_digest` of every source the function can reach)
+    instead of numba's stamp of the function's own file: the compiled code is taken from the cache
+    only while none of those sources changed."""
+
+    class SourcesStamp:
+        def get_source_stamp(self):
+            return sources_digest
+
+    # numba's own file-backed locators (NUMBA_CACHE_DIR, the package's __pycache__, the user's
+    # cache directory), each with the widened stamp.
+    locators = [
+        type(f"PhysicsSources{base.__name__}", (SourcesStamp, base), {})
+        for base in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)
+    ]
+    cache_impl = type("StampedCacheImpl", (caching.CompileResultCacheImpl,), {"_locator_classes": locators})
+    cache = type("StampedCache", (caching.FunctionCache,), {"_impl_class": cache_impl})
+
+    def compiled(function, parallel=False):
+        dispatcher = numba.njit(parallel=parallel, **JIT_OPTIONS)(function)
+        dispatcher._cache = cache(function)  # what Dispatcher.enable_caching() does for cache=True
+        return dispatcher
+
+    return compiled
 
 
-# numba's own file-backed locators (NUMBA_CACHE_DIR, the package's __pycache__, the user's cache
-# directory), each with the widened stamp.
-_LOCATORS = [
-    type(f"PhysicsSources{base.__name__}", (_SourcesStamp, base), {})
-    for base in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)
-]
-
-
-class _KernelCacheImpl(caching.CompileResultCacheImpl):
-    _locator_classes = _LOCATORS
-
-
-class _KernelCache(caching.FunctionCache):
-    _impl_class = _KernelCacheImpl
-
-
-def _compiled(function, parallel=False):
-    """``numba.njit(cache=True)`` with the cache stamp of every physics source."""
-    dispatcher = numba.njit(parallel=parallel, **JIT_OPTIONS)(function)
-    dispatcher._cache = _KernelCache(function)  # what Dispatcher.enable_caching() does for cache=True
-    return dispatcher
+#: ``numba.njit(cache=True)`` with the cache stamp of every physics source.
+_compiled = stamped_compiler(_SOURCES_DIGEST)
 
 
 def _compiled_threaded(function):

@@ -13,7 +13,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ..physics import BrakeCylinder
+from ..physics import BrakeCylinder, WheelSlideProtectionValve
+from ..physics.pneumatics import VALVE_APPLY
 from . import kernel
 from .state import CylinderState
 
@@ -194,3 +195,80 @@ class PrescribedPressure:
 
     def advance_by(self, n_steps: int) -> None:
         self._step += n_steps
+
+
+class ValvedPressure:
+    """Cylinder pressures behind wheel-slide protection valves (:class:`PressureSource`).
+
+    The brake control's pressures come from ``supply`` (its commands set with :meth:`set_command`);
+    each valve, one per axle or per bogie (``valve_of_axle`` (A,): the valve of each axle),
+    dumps, holds or applies (:data:`~brakegym.physics.pneumatics.VALVE_DUMP`, ...) as set with
+    :meth:`set_valves`, held over each step. The pressures are advanced in two half steps, so the
+    RK4 stages get the pressures at the step's start, middle and end. With every valve applying
+    the cylinders have the supply's pressures, bit for bit.
+    """
+
+    def __init__(self, supply: CommandedPressure, valve: WheelSlideProtectionValve, valve_of_axle: Sequence[int]):
+        self.supply = supply
+        self.valve = valve
+        self.valve_of_axle = np.asarray(valve_of_axle, dtype=np.int64)
+        n_trains, n_axles = supply.pressure_bar.shape
+        if self.valve_of_axle.shape != (n_axles,):
+            raise ValueError(f"valve_of_axle {list(valve_of_axle)}: need one valve index per axle ({n_axles})")
+        self.n_valves = int(self.valve_of_axle.max()) + 1
+        self.step_s = supply.step_s
+        self._pressure = supply.pressure_bar.copy()
+        self._valves = np.full((n_trains, self.n_valves), VALVE_APPLY, dtype=np.int64)
+        self._stages: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def pressure_bar(self) -> np.ndarray:
+        return self._pressure
+
+    @property
+    def supply_bar(self) -> np.ndarray:
+        """The brake control's pressure before the valves (B, A)."""
+        return self.supply.pressure_bar
+
+    @property
+    def command_bar(self) -> np.ndarray:
+        return self.supply.command_bar
+
+    @property
+    def valves(self) -> np.ndarray:
+        """The valve commands now (B, valves)."""
+        return self._valves
+
+    def set_command(self, command_bar: np.ndarray) -> None:
+        """The brake control's command per axle (B, A) (:meth:`CommandedPressure.set_command`)."""
+        self.supply.set_command(command_bar)
+
+    def set_valves(self, valves: np.ndarray) -> None:
+        """Valve commands (B, valves) from now on: each VALVE_DUMP, VALVE_HOLD or VALVE_APPLY."""
+        valves = np.broadcast_to(np.asarray(valves), self._valves.shape)
+        if not np.isin(valves, (-1, 0, 1)).all():
+            raise ValueError(f"valve commands must be -1 (dump), 0 (hold) or 1 (apply), got {np.unique(valves)}")
+        self._valves = valves.astype(np.int64)
+
+    def reset_trains(self, index: np.ndarray, pressure_bar: float = 0.0) -> None:
+        """:meth:`CommandedPressure.reset_trains`, the valves of those trains back to apply."""
+        self.supply.reset_trains(index, pressure_bar)
+        self._pressure[index] = pressure_bar
+        self._valves[index] = VALVE_APPLY
+
+    def stage_pressures_bar(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        supply = self.supply.stage_pressures_bar()
+        valve_of_axle = self._valves[:, self.valve_of_axle]
+        half = 0.5 * self.step_s
+        start = self._pressure.copy()
+        middle = self.valve.pressure_after(start, supply[0], supply[1], valve_of_axle, half)
+        end = self.valve.pressure_after(middle, supply[1], supply[2], valve_of_axle, half)
+        self._stages = (start, middle, end)
+        return self._stages
+
+    def advance(self) -> None:
+        if self._stages is None:
+            raise RuntimeError("ValvedPressure.advance before stage_pressures_bar: no step to advance over")
+        self.supply.advance()
+        self._pressure = self._stages[2]
+        self._stages = None

@@ -39,6 +39,14 @@ SPEED, POSITION, BRAKE_WORK, RESISTANCE_WORK, EXTRA_WORK, MU_EFF_DISTANCE = rang
 N_TRAIN_STATES = len(TRAIN_STATES)
 
 
+# Rows of the packed per-axle state of the wheel-rail adhesion option (rows, axles, trains).
+WHEELSET_STATES = (
+    "angular_speed_rad_per_s",  # omega of the wheelset
+    "slip_work_J",  # integral of F_creep (v - omega r) dt: the work of the treads sliding on the rail
+)
+ANGULAR_SPEED, SLIP_WORK = range(len(WHEELSET_STATES))
+
+
 class CylinderState(NamedTuple):
     """The brake cylinders of a batch as the compiled kernel runs them
     (:func:`brakegym.simulator.kernel.commanded_pressures`). An empty ``history`` (H = 0) means no

@@ -1,0 +1,129 @@
+"""Train stops with wheel-rail adhesion and wheel-slide protection (docs/adhesion.md, issue 16):
+the brake control's pressures through WSP valves per axle or bogie, the valves commanded each step
+by a controller (:class:`brakegym.agents.wsp.WspController`), or left at rest (no WSP).
+
+The simulator steps at the controller's step (``control_step_s``, 20 ms by default: WSP controllers
+run at 50-100 Hz), so each step holds one valve command.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from . import config as cfg
+from .applications import CommandSchedule, StopSummary, TrainApplication, run_stops, train_conditions
+from .plants import brake_cylinder, nominal_draw, train_plant, valve_of_axle, wsp_valve
+from .simulator import CommandedPressure
+from .simulator.pressure import ValvedPressure
+from .simulator.state import SPEED
+from .simulator.wheelsets import AdhesionSimulator, WheelRailAdhesion
+from .units import kmh_to_mps
+
+#: WSP controllers run at 50-100 Hz.
+DEFAULT_CONTROL_STEP_S = 0.02
+#: A wheel turning slower than this share of the train speed counts as locked (sliding).
+LOCKED_SPEED_RATIO = 0.05
+#: Below this train speed no wheel counts as locked (the last metres of every stop).
+LOCKED_MIN_TRAIN_SPEED_MPS = 1.0
+
+
+class LockedTimeObserver:
+    """After each step: each axle's time locked (wheel below ``LOCKED_SPEED_RATIO`` of the train
+    speed while it runs faster than ``LOCKED_MIN_TRAIN_SPEED_MPS``), the longest unbroken stretch
+    and the total, s (B, A); and whether it was locked when the train stopped."""
+
+    def __init__(self, n_trains: int, n_axles: int) -> None:
+        self.current_s = np.zeros((n_trains, n_axles))
+        self.longest_s = np.zeros((n_trains, n_axles))
+        self.total_s = np.zeros((n_trains, n_axles))
+
+    def update(self, sim: AdhesionSimulator) -> None:
+        speed = sim.train[SPEED]
+        running = sim.moving & (speed > LOCKED_MIN_TRAIN_SPEED_MPS)
+        locked = (sim.wheel_speed_mps.T < LOCKED_SPEED_RATIO * speed[:, None]) & running[:, None]
+        self.current_s = np.where(locked, self.current_s + sim.step_s, 0.0)
+        self.longest_s = np.maximum(self.longest_s, self.current_s)
+        self.total_s += np.where(locked, sim.step_s, 0.0)
+
+
+class WspControl(Protocol):
+    """A WSP controller as the stops drive it (:class:`brakegym.agents.wsp.WspController`)."""
+
+    @property
+    def uses_train_speed(self) -> bool: ...
+
+    def reset(self, wheel_speed_mps: np.ndarray) -> None: ...
+
+    def valves(self, wheel_speed_mps: np.ndarray, train_speed_mps: np.ndarray | None = None) -> np.ndarray: ...
+
+
+class _WspCommand:
+    """The campaign's brake command, then the valve commands of the controller (none: at rest)."""
+
+    def __init__(self, schedule: CommandSchedule, pressure: ValvedPressure, controller: WspControl | None):
+        self.schedule, self.pressure, self.controller = schedule, pressure, controller
+        self.command_time_s = schedule.command_time_s
+        self.position_at_command_m = schedule.position_at_command_m
+        self._started = False
+
+    def __call__(self, sim: AdhesionSimulator) -> None:
+        self.schedule(sim)
+        if self.controller is None:
+            return
+        wheels = sim.wheel_speed_mps.T
+        if not self._started:
+            self.controller.reset(wheels)
+            self._started = True
+        train_speed = sim.train[SPEED] if self.controller.uses_train_speed else None
+        self.pressure.set_valves(self.controller.valves(wheels, train_speed))
+
+
+@dataclass
+class WspStops:
+    """Stops with WSP: the summary, each axle's locked times (:class:`LockedTimeObserver`)."""
+
+    summary: StopSummary
+    locked: LockedTimeObserver
+
+
+def wsp_train_stops(
+    vehicle: cfg.Vehicle,
+    applications: Sequence[TrainApplication],
+    adhesion: WheelRailAdhesion,
+    valves: cfg.WspValves,
+    make_controller=None,
+    control_step_s: float = DEFAULT_CONTROL_STEP_S,
+) -> WspStops:
+    """Stops of ``vehicle`` as :func:`~brakegym.applications.train_stops` runs them (nominal
+    friction), on the rail of ``adhesion``, through the WSP ``valves``, commanded by the controller
+    ``make_controller(valve_of_axle, control_step_s)`` builds (e.g.
+    ``functools.partial(brakegym.agents.wsp.WspController, config)``; None: no WSP, the valves at
+    rest)."""
+    plant = train_plant(vehicle)
+    n = len(applications)
+    cylinders = [brake_cylinder(cfg.load("pneumatics", app.actuation)) for app in applications]
+    pressures = np.array([vehicle.brake_pressure_bar(app.brake_mode, app.load) for app in applications])
+    command = np.repeat(pressures[:, None], plant.n_axles, axis=1)
+    conditions = train_conditions(
+        vehicle,
+        mass_kg=np.array([vehicle.mass_kg(app.load) for app in applications]),
+        initial_speed_mps=np.array([kmh_to_mps(app.initial_speed_kmh) for app in applications]),
+        draw=nominal_draw(cfg.load("materials", vehicle.material), n, plant.disc_shape),
+        running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N),
+    )
+    axles = valve_of_axle(vehicle, valves)
+    pressure = ValvedPressure(CommandedPressure(cylinders, plant.n_axles, control_step_s), wsp_valve(valves), axles)
+    sim = AdhesionSimulator(plant, conditions, pressure, adhesion, step_s=control_step_s)
+    schedule = CommandSchedule(
+        pressure, command, np.array([app.command_time_s for app in applications]), control_step_s
+    )
+    controller = None if make_controller is None else make_controller(axles, control_step_s)
+    locked = LockedTimeObserver(n, plant.n_axles)
+    summary = run_stops(
+        sim, plant.caliper.clamp_force_N(command), _WspCommand(schedule, pressure, controller), observers=[locked]
+    )
+    return WspStops(summary, locked)
