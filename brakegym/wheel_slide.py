@@ -1,4 +1,4 @@
-"""Train stops with wheel-rail adhesion and wheel-slide protection (docs/adhesion.md, issue 16):
+"""Train stops with wheel-rail adhesion and wheel-slide protection (docs/adhesion.md):
 the brake control's pressures through WSP valves per axle or bogie, the valves commanded each step
 by a controller (:class:`brakegym.agents.wsp.WspController`), or left at rest (no WSP).
 

@@ -1,4 +1,4 @@
-"""Parameter identification (issue 4): fit the model to dynamometer curves and train recordings.
+"""Parameter identification: fit the model to dynamometer curves and train recordings.
 
 - :mod:`.parameters`: fittable parameters and their bounds (``configs/identification/``).
 - :mod:`.cases`: load cases to fit (dyno mean curves, train recordings), predicted in batches.

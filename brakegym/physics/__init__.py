@@ -3,7 +3,7 @@
 - :mod:`.friction`: the dynamic coefficient of friction of one disc unit (paper Eq. 4).
 - :mod:`.thermal`: the two-capacity disc temperature model (paper Eqs. 5-10).
 - :mod:`.mechanics`: brake force, sliding speed and running resistance (paper Eqs. 11, 12, 14).
-- :mod:`.adhesion`: wheel-rail creep and Polach's creep-force law (docs/adhesion.md; issue 16).
+- :mod:`.adhesion`: wheel-rail creep and Polach's creep-force law (docs/adhesion.md).
 - :mod:`.pneumatics`: brake cylinder (dead time and lag) and caliper (spec Section 4).
 - :mod:`.scatter`: the stochastic friction set-ups DS, MCS-100, MCS-75/25 (paper Eq. 13).
 

@@ -1,5 +1,5 @@
 """The simulator with wheel-rail adhesion: each wheelset turns on its own and creeps on the rail
-(docs/adhesion.md; issue 16). An option, off by default: :class:`AdhesionSimulator` steps with its
+(docs/adhesion.md). An option, off by default: :class:`AdhesionSimulator` steps with its
 own compiled kernel (:mod:`.wheelset_kernel`), so :class:`~.integrator.Simulator` and its kernel
 are untouched; :class:`~.wheelsets_reference.NumpyAdhesionSimulator` is the same scheme in numpy,
 the reference the kernel is tested against.
