@@ -1,8 +1,8 @@
 """Wheel-rail adhesion: creep and Polach's creep-force law (docs/adhesion.md).
 
     s     = (v - u) / max(v, v_reg)                 longitudinal creep, u = omega r the wheel speed
-    mu(w) = mu_0 [(1 - A) exp(-B |w|) + A]          friction falling with the slip speed w = v - u
-    eps   = G pi a b c_11 / (4 Q mu) |s|            gradient of the tangential stress
+    mu(w) = mu_0 [(1 - A) exp(-B abs(w)) + A]          friction falling with the slip speed w = v - u
+    eps   = G pi a b c_11 / (4 Q mu) abs(s)            gradient of the tangential stress
     F / Q = (2 mu / pi) [k_A eps / (1 + (k_A eps)^2) + arctan(k_S eps)]   (sign of s)
 
 O. Polach, *Creep forces in simulations of traction vehicles running on adhesion limit*, Wear 258
@@ -31,7 +31,7 @@ def creep(speed_mps, wheel_speed_mps, regularisation_speed_mps):
 
 
 def friction_coefficient(slip_speed_mps, static_friction, friction_ratio_at_infinity, friction_decay_s_per_m):
-    """mu(w) = mu_0 [(1 - A) exp(-B |w|) + A], Polach's friction falling with the slip speed w
+    """mu(w) = mu_0 [(1 - A) exp(-B abs(w)) + A], Polach's friction falling with the slip speed w
     (mu_0 at w = 0, mu_0 A as w grows without bound)."""
     decay = np.exp(-friction_decay_s_per_m * np.abs(slip_speed_mps))
     return static_friction * ((1.0 - friction_ratio_at_infinity) * decay + friction_ratio_at_infinity)
@@ -44,12 +44,12 @@ def contact_semi_axis_m(wheel_load_N, reference_semi_axis_m, reference_wheel_loa
 
 def creep_stiffness_N(shear_modulus_Pa, semi_axis_a_m, semi_axis_b_m, kalker_c11):
     """G pi a b c_11 / 4: the tangential force per unit creep of Kalker's linear theory over 4/3
-    (Polach's eps is this times |s| over Q mu). Depends on the contact only."""
+    (Polach's eps is this times abs(s) over Q mu). Depends on the contact only."""
     return 0.25 * np.pi * shear_modulus_Pa * semi_axis_a_m * semi_axis_b_m * kalker_c11
 
 
 def stress_gradient(creep_, creep_stiffness_N_, wheel_load_N, friction):
-    """Polach's eps = (G pi a b c_11 / 4) |s| / (Q mu), the gradient of the tangential stress in
+    """Polach's eps = (G pi a b c_11 / 4) abs(s) / (Q mu), the gradient of the tangential stress in
     the adhesion area (dimensionless)."""
     return creep_stiffness_N_ * np.abs(creep_) / (wheel_load_N * friction)
 

@@ -202,7 +202,7 @@ _CACHE_SOURCES = (
 )
 
 
-#: What the kernels' disk cache is stamped with: kernels elsewhere that call into these add theirs.
+#: The sources the kernels' disk cache is stamped with; kernels elsewhere that call into these add theirs.
 KERNEL_CACHE_SOURCES = _CACHE_SOURCES
 
 

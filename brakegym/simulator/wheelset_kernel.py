@@ -126,8 +126,8 @@ def _compiled_threaded(function):
     return _compiled(function, parallel=True)
 
 
-#: A batch is shared out over threads only with at least this many trains per thread: a train's
-#: step costs some 10 us, a thread's start some more.
+#: The fewest trains per thread for which a batch is shared out over threads (a train's step
+#: costs some 10 us, a thread's start some more).
 TRAINS_PER_THREAD = 8
 
 # Columns of the section table (S, N_LAW_PARAMETERS): Polach's parameters of each section's law.

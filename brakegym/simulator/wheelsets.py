@@ -10,8 +10,8 @@ train speed in n substeps by the linearly implicit Euler method, whose Jacobian 
 wheel speed couples only to the train speed) is solved by a Schur complement. The substeps give
 the RK4 stages the wheel speeds at t, t + h/2 and t + h. docs/adhesion.md says why.
 
-Wheel speeds are u = omega r (m/s) in the equations; :data:`~.state.WHEELSET_STATES` names the
-rows of :attr:`AdhesionSimulator.wheelset`.
+Wheel speeds are u = omega r (m/s) in the equations; ``state.WHEELSET_STATES`` names the rows of
+``AdhesionSimulator.wheelset``.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ __all__ = [
 
 #: Below this train speed the creep divides by it instead of v (ASSUMED, docs/adhesion.md).
 DEFAULT_REGULARISATION_SPEED_MPS = 0.5
-#: Longest wheelset substep (docs/adhesion.md: converged to 0.5 % against a tenth of it).
+#: Longest wheelset substep, s (converged to 0.5 % against a tenth of it, docs/adhesion.md).
 DEFAULT_MAX_SUBSTEP_S = 0.01
 
 
@@ -164,7 +164,7 @@ class AdhesionSimulator(Simulator):
     # Rows of the per-train constants, as views: writing to them writes what the kernel reads.
     @property
     def body_mass_kg(self) -> np.ndarray:
-        """m - n_axles J / r^2 per train: the body's mass, the wheelsets carrying their own inertia."""
+        """The body's mass per train, m - n_axles J / r^2 in kg (the wheelsets carry their own inertia)."""
         return self.wheelset_constants[wheelset_kernel.BODY_MASS_KG]
 
     @property
@@ -257,7 +257,7 @@ class AdhesionSimulator(Simulator):
         rail's creep forces and the running resistance over the body mass. With adhesion the brake
         acts on the wheels, not on the train: the deceleration depends on the wheel speeds
         ``wheel_speed_mps`` (A, B) of that state, not on the discs and pressures. Without them,
-        only the current state (``train`` is :attr:`train`) is defined."""
+        only the current state (``train`` is ``self.train``) is defined."""
         if wheel_speed_mps is None:
             if train is not self.train:
                 raise ValueError(
