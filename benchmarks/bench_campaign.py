@@ -5,16 +5,16 @@
 Runs the field campaign in MCS-75/25 (88 applications x 50 = 4400 train stops of 16 discs, chunks
 of the default size) on: the inline executor with one kernel thread (the one-core reference), the
 inline executor with every kernel thread, 2 local worker processes, and a local Dask cluster of 2
-worker processes (started once, before the timed runs). The variants take turns, ``--rounds``
-times, so that a machine whose load changes during the run affects them alike; each variant's
-best and median time are printed. Then a sample of the same stops (same draws), one ``solve_ivp``
+worker processes: one after the other, each started and warmed by an untimed campaign, then timed
+``--rounds`` times and closed before the next starts (an idle Dask cluster alone slows the other
+variants by a third on two cores). Each variant's best and median time are printed. Then a sample of the same stops (same draws), one ``solve_ivp``
 call each, for the per-disc-stop speed ratio, with the largest difference in stop distance.
 Timings on a shared machine vary from run to run; compare the variants within one run.
 
 The compiled kernels are loaded before the timed runs (the line "kernels loaded" says how long
 that took: numba's start-up and the disk cache, or the first compile on a new machine); a
 campaign in a fresh process pays it once on top of the times shown, and so does each Dask worker
-(not timed: the cluster runs one untimed campaign first).
+(not timed: each executor runs one untimed campaign first).
 """
 
 from __future__ import annotations
@@ -60,26 +60,27 @@ def main() -> None:
 
     all_threads = kernel.kernel_threads()
     executors = {
-        "inline, 1 kernel thread": InlineExecutor(kernel_threads=1),
-        f"inline, {all_threads} kernel threads": InlineExecutor(kernel_threads=all_threads),
-        "local, 2 processes": LocalExecutor(2),
+        "inline, 1 kernel thread": lambda: InlineExecutor(kernel_threads=1),
+        f"inline, {all_threads} kernel threads": lambda: InlineExecutor(kernel_threads=all_threads),
+        "local, 2 processes": lambda: LocalExecutor(2),
     }
     if not args.no_dask:
-        start = time.perf_counter()
-        dask = DaskExecutor(workers=2)
-        field_campaign(campaign, setup, args.seed, args.step, executor=dask)  # the workers load the kernels
-        print(f"  Dask local cluster of 2 workers started and warmed in {time.perf_counter() - start:.1f} s (untimed)")
-        executors["dask, 2 local workers"] = dask
-    timings: dict[str, list[float]] = {label: [] for label in executors}
+        executors["dask, 2 local workers"] = lambda: DaskExecutor(workers=2)
+    timings: dict[str, list[float]] = {}
     tables = {}
-    for _ in range(args.rounds):
-        for label, executor in executors.items():
+    # One executor alive at a time: an idle Dask cluster's scheduler and workers take enough of the
+    # two cores to slow the other variants by a third.
+    for label, make in executors.items():
+        with make() as executor:
             start = time.perf_counter()
-            result = field_campaign(campaign, setup, args.seed, args.step, executor=executor)
-            timings[label].append(time.perf_counter() - start)
+            field_campaign(campaign, setup, args.seed, args.step, executor=executor)  # workers load the kernels
+            print(f"  {label}: started and warmed in {time.perf_counter() - start:.1f} s (untimed)")
+            timings[label] = []
+            for _ in range(args.rounds):
+                start = time.perf_counter()
+                result = field_campaign(campaign, setup, args.seed, args.step, executor=executor)
+                timings[label].append(time.perf_counter() - start)
             tables[label] = result.applications
-    for executor in executors.values():
-        executor.close()
     first = next(iter(tables.values()))
     identical = all(other.equals(first) for other in tables.values())
     stop_time_s = first.stop_time_s.to_numpy()
