@@ -7,8 +7,9 @@ of the default size) on: the inline executor with one kernel thread (the one-cor
 inline executor with every kernel thread, 2 local worker processes, and a local Dask cluster of 2
 worker processes: one after the other, each started and warmed by an untimed campaign, then timed
 ``--rounds`` times and closed before the next starts (an idle Dask cluster alone slows the other
-variants by a third on two cores). Each variant's best and median time are printed. Then a sample of the same stops (same draws), one ``solve_ivp``
-call each, for the per-disc-stop speed ratio, with the largest difference in stop distance.
+variants by a third on two cores). Each variant's best and median time are printed. Then a
+sample of the same stops (same draws), one ``solve_ivp`` call each, for the per-disc-stop speed
+ratio, with the largest difference in stop distance.
 Timings on a shared machine vary from run to run; compare the variants within one run.
 
 The compiled kernels are loaded before the timed runs (the line "kernels loaded" says how long

@@ -23,10 +23,10 @@ carries its seed and its stops' indices, see :mod:`brakegym.campaigns.chunks`).
 Importing this package loads neither numba nor distributed; the executors load what they run.
 """
 
-from .base import Executor, ExecutorUnavailable, TaskFailed
+from .base import Executor, ExecutorUnavailable, TaskFailed, available_cores
 from .dask_cluster import DaskExecutor
 from .local import InlineExecutor, LocalExecutor
-from .options import EXECUTOR_KINDS, available_cores, executor_from_options
+from .options import EXECUTOR_KINDS, executor_from_options
 from .rows import RowsOnExecutor
 
 __all__ = [

@@ -14,6 +14,7 @@ executor says (one thread in worker processes, which already share the cores).
 from __future__ import annotations
 
 import abc
+import os
 import pickle
 import traceback
 from collections import deque
@@ -31,6 +32,13 @@ Progress = Callable[[int], None]
 
 # How much of an item a failure message shows.
 _ITEM_TEXT_LIMIT = 200
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the platform tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
 
 
 class ExecutorUnavailable(Exception):

@@ -17,7 +17,17 @@ import uuid
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from .base import Executor, ExecutorUnavailable, Item, Progress, Result, WorkerContext, ordered_results, run_task
+from .base import (
+    Executor,
+    ExecutorUnavailable,
+    Item,
+    Progress,
+    Result,
+    WorkerContext,
+    available_cores,
+    ordered_results,
+    run_task,
+)
 
 INSTALL_HINT = "pip install 'brakegym[dask]' (or: pip install distributed)"
 # How long to wait for an existing scheduler before giving up (distributed retries until then).
@@ -47,8 +57,6 @@ class DaskExecutor(Executor):
             raise ExecutorUnavailable(f"the Dask executor needs the package distributed: {INSTALL_HINT}") from None
         self._cluster: Any = None
         if address is None:
-            from .options import available_cores
-
             self._cluster = distributed.LocalCluster(
                 n_workers=workers or available_cores(),
                 threads_per_worker=1,

@@ -1,21 +1,12 @@
 """An executor from the command line's options (``--executor``, ``--workers``,
-``--dask-address``), and the cores this process may use."""
+``--dask-address``)."""
 
 from __future__ import annotations
 
-import os
-
-from .base import Executor
+from .base import Executor, available_cores
 
 #: The executors by name, as ``--executor`` takes them.
 EXECUTOR_KINDS = ("inline", "local", "dask")
-
-
-def available_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the platform tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
 
 
 def executor_from_options(kind: str = "inline", workers: int | None = None, address: str | None = None) -> Executor:
