@@ -11,6 +11,7 @@ import pytest
 
 from brakegym import config as cfg
 from brakegym.cli import main
+from brakegym.diagnosis import DiagnosisRules
 from brakegym.diagnosis.inputs import chain_report, initial_disc_temperature
 from brakegym.diagnosis.noise import channel_runs, estimate_channel_noise, quantisation_step
 from brakegym.recordings import read_dataset
@@ -227,7 +228,7 @@ def test_the_noise_model_recovers_ar1_level_and_correlation(rho):
     time = np.arange(n) * 0.01
     signal = 2.0 * np.sin(time / 3.0) + 0.1 * time  # smooth on the estimator's window
     values = signal + ar1_noise(np.random.default_rng(7), (n,), sigma, rho)
-    model = estimate_channel_noise(time, values)
+    model = estimate_channel_noise(time, values, window_s=1.0)
     assert model.sigma == pytest.approx(sigma, rel=0.05)
     assert model.rho == pytest.approx(rho, abs=0.03)
     # What a white-noise estimate from neighbours' differences gives: sigma sqrt(1 - rho).
@@ -248,7 +249,7 @@ def test_the_diagnosis_takes_each_channel_on_its_own_samples(noisy, chain):
     # model recovers it.
     decel = chain.channels.decel_mps2
     assert noise["decel_mps2"] < 0.7 * decel.noise_sigma
-    models = estimate_noise_models(recordings)
+    models = estimate_noise_models(recordings, DiagnosisRules().noise_window_s)
     assert models["decel_mps2"].sigma == pytest.approx(decel.noise_sigma, rel=0.1)
     assert models["decel_mps2"].rho == pytest.approx(decel.ar1_rho, abs=0.05)
     # The fit starts each recording's initial disc temperature from its first sample.

@@ -15,7 +15,7 @@ correlation ratio eta^2) says along which axis a mismatch lives. On clean data i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,10 +85,11 @@ def estimate_noise(recordings: Sequence[Recording]) -> dict[str, float]:
     return out
 
 
-def estimate_noise_models(recordings: Sequence[Recording]) -> dict[str, ChannelNoise]:
+def estimate_noise_models(recordings: Sequence[Recording], window_s: Mapping[str, float]) -> dict[str, ChannelNoise]:
     """The AR(1) noise model of speed, deceleration and disc temperature
-    (:func:`.noise.pooled_channel_noise`, one per channel over all recordings, on the same samples
-    as :func:`estimate_noise`); channels no recording has are left out."""
+    (:func:`.noise.pooled_channel_noise`, one per channel over all recordings, its smooth spanning
+    ``window_s[channel]`` seconds, on the same samples as :func:`estimate_noise`); channels no
+    recording has are left out."""
     out = {}
     for channel in NOISE_CHANNELS:
         series = []
@@ -100,7 +101,7 @@ def estimate_noise_models(recordings: Sequence[Recording]) -> dict[str, ChannelN
                 values = np.where(_moving(recording), values, np.nan)
             series.append((recording.time_s, values))
         if series:
-            out[channel] = pooled_channel_noise(series)
+            out[channel] = pooled_channel_noise(series, window_s[channel])
     return out
 
 

