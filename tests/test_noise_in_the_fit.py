@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from brakegym.diagnosis import DiagnosisRules
@@ -15,7 +16,7 @@ from brakegym.diagnosis.locate import estimate_noise_models
 from brakegym.diagnosis.noise import window_samples
 from brakegym.recordings import read_dataset
 from brakegym.recordings.chain import load_measurement_chain
-from brakegym.recordings.columns import DECEL, DISC_TEMPERATURE
+from brakegym.recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from brakegym.recordings.synth import synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -58,3 +59,41 @@ def test_a_slow_thermometer_reads_its_white_noise_with_a_window_in_seconds(recor
     assert models[DECEL].window == 101
     assert models[DECEL].sigma == pytest.approx(accelerometer.noise_sigma, rel=0.05)
     assert models[DECEL].rho == pytest.approx(accelerometer.ar1_rho, abs=0.05)
+
+
+@pytest.fixture(scope="module")
+def diagnoser(recordings):
+    from brakegym.diagnosis import Diagnoser
+
+    return Diagnoser(recordings)
+
+
+def test_the_fit_divides_each_channel_by_its_ar1_level(diagnoser, chain):
+    """The accelerometer's AR(1) noise (0.03 m/s^2, rho 0.8) is the fit's noise on it, where a
+    white-noise estimate read half of it."""
+    noise = diagnoser.problem.noise
+    assert noise[DECEL] == pytest.approx(chain.channels.decel_mps2.noise_sigma, rel=0.05)
+    assert noise[SPEED] == pytest.approx(chain.channels.speed_mps.noise_sigma, rel=0.05)
+    assert noise[DISC_TEMPERATURE] == pytest.approx(chain.channels.T_disc_C.noise_sigma, rel=0.10)
+
+
+@pytest.mark.parametrize("residual_rho", [0.0, 0.9])
+def test_the_effective_sample_share_shrinks_as_the_noise_rho_grows(diagnoser, residual_rho):
+    """With a white residual each channel's share is (1 - rho) / (1 + rho) of its noise's rho; a
+    residual more correlated than its noise keeps its own share."""
+    from brakegym.diagnosis.weighting import Weighting
+    from brakegym.recordings.logger import ar1_noise
+
+    problem = diagnoser.problem
+    residual = ar1_noise(np.random.default_rng(5), (len(problem.recording_of),), 1.0, residual_rho)
+    shares, totals = [], []
+    for noise_rho in (0.0, 0.5, 0.8, 0.95):
+        weighting = Weighting(problem, residual, {DECEL: noise_rho})
+        expected = (1 - max(noise_rho, residual_rho)) / (1 + max(noise_rho, residual_rho))
+        assert weighting.channel_shares[DECEL] == pytest.approx(expected, abs=0.02)
+        shares.append(weighting.channel_shares[DECEL])
+        totals.append(weighting.n_eff_total)
+    if residual_rho == 0.0:
+        assert np.all(np.diff(shares) < 0) and np.all(np.diff(totals) < 0)
+    else:
+        assert np.all(np.diff(shares[:3]) == 0) and shares[3] < shares[2]
