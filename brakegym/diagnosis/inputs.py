@@ -7,15 +7,23 @@ reports of each recording's measurement chain as the data show it.
   kelvin per second while coasting, well inside the fit's nuisance bounds), else the ambient
   temperature. Either way it is only the start of the fitted nuisance, and the report says which
   recordings had it estimated and from what.
+- **Pressure-transducer zero offsets.** The replay takes a transducer's reading for cylinder
+  pressure; a zero offset would be a clamp force of gain x offset through the whole stop (and heat
+  into the instrumented disc's axle). Each transducer's reading before the brake onset (its median,
+  :func:`.noise.zero_reading`) is its offset when it is above 0 and is subtracted from its samples
+  before the replay (:func:`zero_corrected`). A transducer saturates at 0 bar, so a negative
+  offset reads 0 before the brake like no offset at all: it cannot be identified from the data,
+  nothing is subtracted, and the report lists the transducer.
 - **The chain as seen.** Per channel: how many samples, the median interval and its spread (mixed
   and uneven rates), the blank cells inside the channel's own sampling (dropouts), the quantisation
-  step the values lie on; per pressure transducer and for an accelerometer, the reading while
-  nothing acts on it (a zero offset or bias, :func:`.noise.zero_reading`). Reported
-  under ``measurement_chain`` in the diagnosis report; nothing is corrected from it.
+  step the values lie on; per pressure transducer its zero reading and the offset removed, and for
+  an accelerometer the reading at standstill (its bias less g x gradient; not corrected). Reported
+  under ``measurement_chain`` in the diagnosis report.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -66,6 +74,51 @@ def initial_disc_temperature(recording: Recording) -> InitialDiscTemperature:
     return InitialDiscTemperature(recording.metadata.ambient_C, "ambient")
 
 
+@dataclass(frozen=True)
+class PressureZero:
+    """A pressure transducer's zero reading: the median of its samples before the brake onset
+    (bar; None without any), and whether that identifies its zero offset. A transducer saturates
+    at 0 bar: one with a negative offset reads 0 before the brake, as one without an offset does,
+    so a reading of 0 says only that the offset is at most 0 and nothing is removed."""
+
+    reading_bar: float | None
+    samples: int
+
+    @property
+    def identifiable(self) -> bool:
+        return self.reading_bar is not None and self.reading_bar > 0.0
+
+    @property
+    def offset_bar(self) -> float:
+        """The offset removed from the replay's input: the reading where identifiable, else 0."""
+        return float(self.reading_bar) if self.identifiable else 0.0
+
+
+def pressure_zeros(recording: Recording) -> dict[str, PressureZero]:
+    """Each pressure transducer's :class:`PressureZero`, from its samples before the brake onset."""
+    before = recording.time_s < brake_onset_s(recording)
+    out = {}
+    for column in recording.pressure_columns:
+        reading = zero_reading(recording.channel(column)[before])
+        out[column] = PressureZero(reading["median"], reading["samples"]) if reading else PressureZero(None, 0)
+    return out
+
+
+def zero_corrected(recording: Recording) -> Recording:
+    """The recording with each transducer's identifiable zero offset subtracted from its pressures
+    (held at 0 bar below it: a cylinder pressure is not negative, and below the clamp threshold
+    a reading gives no force either way). The replay takes a transducer's zero offset for cylinder
+    pressure, a clamp force of gain x offset on every sample of the stop."""
+    zeros = pressure_zeros(recording)
+    offsets = {column: zero.offset_bar for column, zero in zeros.items() if zero.offset_bar > 0}
+    if not offsets:
+        return recording
+    data = recording.data.copy()
+    for column, offset in offsets.items():
+        data[column] = np.maximum(data[column].to_numpy(dtype=float) - offset, 0.0)
+    return dataclasses.replace(recording, data=data)
+
+
 def _channel_description(recording: Recording, channel: str) -> dict[str, Any] | None:
     values = recording.channel(channel)
     if values is None:
@@ -89,15 +142,28 @@ def _channel_description(recording: Recording, channel: str) -> dict[str, Any] |
 
 def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
     """The ``measurement_chain`` entry of the report: per recording, each channel's sampling as the
-    data show it, the pressure and accelerometer zero readings, and the initial disc temperature
-    where it was not given."""
-    out: dict[str, Any] = {"recordings": {}, "initial_disc_C_estimated": {}}
+    data show it, the pressure zero readings and the offsets removed, the accelerometer's reading
+    at standstill, and the initial disc temperature where it was not given; the transducers whose
+    zero offset cannot be identified."""
+    out: dict[str, Any] = {
+        "recordings": {},
+        "initial_disc_C_estimated": {},
+        "pressure_zero_offset_not_identifiable": {},
+    }
     for recording in recordings:
         channels = {c: d for c in CHAIN_CHANNELS if (d := _channel_description(recording, c)) is not None}
-        onset = brake_onset_s(recording)
-        before = recording.time_s < onset
-        zeros = {column: zero_reading(recording.channel(column)[before]) for column in recording.pressure_columns}
-        entry: dict[str, Any] = {"channels": channels, "pressure_before_brake_onset_bar": zeros}
+        zeros = pressure_zeros(recording)
+        entry: dict[str, Any] = {
+            "channels": channels,
+            "pressure_before_brake_onset_bar": {
+                column: None if zero.reading_bar is None else {"median": zero.reading_bar, "samples": zero.samples}
+                for column, zero in zeros.items()
+            },
+            "pressure_zero_offset_removed_bar": {column: zero.offset_bar for column, zero in zeros.items()},
+        }
+        unidentified = [column for column, zero in zeros.items() if not zero.identifiable]
+        if unidentified:
+            out["pressure_zero_offset_not_identifiable"][recording.stem] = unidentified
         decel = recording.channel(DECEL)
         stop = standstill_index(recording.speed_mps)
         if decel is not None and recording.metadata.decel_source == "accelerometer" and stop is not None:
@@ -112,4 +178,10 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
                 "start_C": initial.value_C,
                 "from": initial.describe(),
             }
+    if out["pressure_zero_offset_not_identifiable"]:
+        out["pressure_zero_offset_note"] = (
+            "these transducers read 0 bar before the brake (or have no sample before it): a negative zero "
+            "offset saturates at 0 like no offset at all, so it cannot be identified and their readings are "
+            "replayed as they are"
+        )
     return out

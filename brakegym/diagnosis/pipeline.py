@@ -4,7 +4,8 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
 1. **Noise**: each channel's AR(1) noise model from the recordings themselves
    (:func:`.locate.estimate_noise_models`); its level is the sigma the fit divides the channel's
    residuals by.
-2. **Fit the unmodified model**, each recording's initial speed, initial disc temperature and
+2. **Fit the unmodified model** to the recordings with their pressure transducers' zero offsets
+   removed (:func:`.inputs.zero_corrected`), each recording's initial speed, initial disc temperature and
    friction factor fitted to convergence as nuisance parameters (:mod:`.fitting`); its residual's
    autocorrelation, and the noise's where that is larger, sets the effective sample weights
    (:mod:`.weighting`).
@@ -40,7 +41,7 @@ from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
 from .fitting import FitProblem, FitResult
-from .inputs import chain_report
+from .inputs import chain_report, zero_corrected
 from .judging import Candidate, Judge
 from .locate import (
     NOISE_CHANNELS,
@@ -97,7 +98,9 @@ class Diagnoser:
         # in noise sigmas would be twice too lax.
         self.noise = {c: self.noise_models[c].sigma if c in self.noise_models else float("nan") for c in NOISE_CHANNELS}
         fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
-        self.problem = FitProblem(self.recordings, fit_noise)
+        # The fit replays each recording with its transducers' identifiable zero offsets removed;
+        # the report describes the recordings as they were read.
+        self.problem = FitProblem([zero_corrected(r) for r in self.recordings], fit_noise)
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs
 
     def _evidence(self, baseline: FitResult) -> Evidence:
