@@ -97,3 +97,29 @@ def test_the_effective_sample_share_shrinks_as_the_noise_rho_grows(diagnoser, re
         assert np.all(np.diff(shares) < 0) and np.all(np.diff(totals) < 0)
     else:
         assert np.all(np.diff(shares[:3]) == 0) and shares[3] < shares[2]
+
+
+def test_the_replay_takes_the_transducers_zero_offsets_out(diagnoser, recordings, real_set):
+    """An offset of at least 0.02 bar (the transducer's noise sigma) is removed to within 0.01 bar
+    (its resolution) from the pressures the fit replays; one of at most -0.02 bar reads 0 before the
+    brake, is left in and reported as not identifiable."""
+    from brakegym.diagnosis.inputs import chain_report
+    from brakegym.recordings.replay import bridged_pressures_bar
+
+    not_identifiable = chain_report(recordings)["pressure_zero_offset_not_identifiable"]
+    positive = negative = 0
+    for read, replayed, application in zip(recordings, diagnoser.problem.recordings, real_set.key["applications"]):
+        true_offsets = np.array(application["measurement_chain"]["offsets"]["p_c_bar"])
+        raw = bridged_pressures_bar(read)
+        braking = raw.mean(axis=1) > 1.0  # well above every offset: no sample saturated
+        left_in = np.mean(bridged_pressures_bar(replayed)[braking] - (raw[braking] - true_offsets), axis=0)
+        for column, offset, error in zip(read.pressure_columns, true_offsets, left_in):
+            if offset >= 0.02:
+                positive += 1
+                assert abs(error) <= 0.01, (read.stem, column, offset, error)
+                assert column not in not_identifiable.get(read.stem, [])
+            elif offset <= -0.02:
+                negative += 1
+                assert error == pytest.approx(offset, abs=1e-9)  # nothing removed
+                assert column in not_identifiable[read.stem]
+    assert positive >= 5 and negative >= 5  # the set holds both kinds (seed 3: 11 and 7)
