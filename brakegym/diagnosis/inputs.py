@@ -10,10 +10,11 @@ reports of each recording's measurement chain as the data show it.
 - **Pressure-transducer zero offsets.** The replay takes a transducer's reading for cylinder
   pressure; a zero offset would be a clamp force of gain x offset through the whole stop (and heat
   into the instrumented disc's axle). Each transducer's reading before the brake onset (its median,
-  :func:`.noise.zero_reading`) is its offset when it is above 0 and is subtracted from its samples
-  before the replay (:func:`zero_corrected`). A transducer saturates at 0 bar, so a negative
-  offset reads 0 before the brake like no offset at all: it cannot be identified from the data,
-  nothing is subtracted, and the report lists the transducer.
+  :func:`.noise.zero_reading`) is its offset when few of those readings are saturated at 0
+  (:class:`PressureZero`), and is subtracted from its samples before the replay
+  (:func:`zero_corrected`). A transducer saturates at 0 bar, so a negative offset reads 0 before
+  the brake like no offset at all: it cannot be identified from the data, nothing is subtracted,
+  and the report lists the transducer.
 - **The chain as seen.** Per channel: how many samples, the median interval and its spread (mixed
   and uneven rates), the blank cells inside the channel's own sampling (dropouts), the quantisation
   step the values lie on; per pressure transducer its zero reading and the offset removed, and for
@@ -40,6 +41,10 @@ CHAIN_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
 # After the measured stop the deceleration steps to zero within a sample or two of the speed
 # channel; readings from this long after it are standstill.
 STANDSTILL_SETTLING_S = 0.5
+# A zero offset is read from at least this many samples before the brake onset, fewer than this
+# share of them saturated at 0 bar (see PressureZero).
+MIN_ZERO_SAMPLES = 10
+MAX_SATURATED_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -77,16 +82,26 @@ def initial_disc_temperature(recording: Recording) -> InitialDiscTemperature:
 @dataclass(frozen=True)
 class PressureZero:
     """A pressure transducer's zero reading: the median of its samples before the brake onset
-    (bar; None without any), and whether that identifies its zero offset. A transducer saturates
-    at 0 bar: one with a negative offset reads 0 before the brake, as one without an offset does,
-    so a reading of 0 says only that the offset is at most 0 and nothing is removed."""
+    (bar; None without any), how many, and the share of them that read 0 bar or below (saturated).
+
+    A transducer's output saturates at 0 bar: with a negative zero offset it reads 0 before the
+    brake, as it does with none, so a reading at 0 says only that the offset is at most 0. With
+    fewer than ``MAX_SATURATED_SHARE`` of the samples saturated, the median is that of the
+    unsaturated readings, the offset (it needs an offset above 0.67 noise sigma: smaller ones,
+    under 0.015 bar for a 0.02 bar noise, are left in)."""
 
     reading_bar: float | None
     samples: int
+    saturated_share: float
 
     @property
     def identifiable(self) -> bool:
-        return self.reading_bar is not None and self.reading_bar > 0.0
+        return (
+            self.reading_bar is not None
+            and self.samples >= MIN_ZERO_SAMPLES
+            and self.saturated_share < MAX_SATURATED_SHARE
+            and self.reading_bar > 0.0
+        )
 
     @property
     def offset_bar(self) -> float:
@@ -99,8 +114,13 @@ def pressure_zeros(recording: Recording) -> dict[str, PressureZero]:
     before = recording.time_s < brake_onset_s(recording)
     out = {}
     for column in recording.pressure_columns:
-        reading = zero_reading(recording.channel(column)[before])
-        out[column] = PressureZero(reading["median"], reading["samples"]) if reading else PressureZero(None, 0)
+        values = recording.channel(column)[before]
+        values = values[~np.isnan(values)]
+        reading = zero_reading(values)
+        if reading is None:
+            out[column] = PressureZero(None, 0, float("nan"))
+        else:
+            out[column] = PressureZero(reading["median"], reading["samples"], float(np.mean(values <= 0.0)))
     return out
 
 
@@ -180,8 +200,8 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
             }
     if out["pressure_zero_offset_not_identifiable"]:
         out["pressure_zero_offset_note"] = (
-            "these transducers read 0 bar before the brake (or have no sample before it): a negative zero "
-            "offset saturates at 0 like no offset at all, so it cannot be identified and their readings are "
-            "replayed as they are"
+            "these transducers read 0 bar on at least a quarter of their samples before the brake (or have "
+            "fewer than 10 there): a negative zero offset saturates at 0 like no offset at all (or one below about "
+            "0.7 noise sigma), so it cannot be identified and their readings are replayed as they are"
         )
     return out
