@@ -86,9 +86,9 @@ class PressureZero:
 
     A transducer's output saturates at 0 bar: with a negative zero offset it reads 0 before the
     brake, as it does with none, so a reading at 0 says only that the offset is at most 0. With
-    fewer than ``MAX_SATURATED_SHARE`` of the samples saturated, the median is that of the
-    unsaturated readings, the offset (it needs an offset above 0.67 noise sigma: smaller ones,
-    under 0.015 bar for a 0.02 bar noise, are left in)."""
+    fewer than ``MAX_SATURATED_SHARE`` of the samples saturated the median lies among the
+    unsaturated readings and estimates the offset; that needs an offset above 0.67 noise sigma
+    (smaller ones, under 0.015 bar for a 0.02 bar noise, are left in)."""
 
     reading_bar: float | None
     samples: int

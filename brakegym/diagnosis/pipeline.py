@@ -5,10 +5,10 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
    (:func:`.locate.estimate_noise_models`); its level is the sigma the fit divides the channel's
    residuals by.
 2. **Fit the unmodified model** to the recordings with their pressure transducers' zero offsets
-   removed (:func:`.inputs.zero_corrected`), each recording's initial speed, initial disc temperature and
-   friction factor fitted to convergence as nuisance parameters (:mod:`.fitting`); its residual's
-   autocorrelation, and the noise's where that is larger, sets the effective sample weights
-   (:mod:`.weighting`).
+   removed (:func:`.inputs.zero_corrected`), each recording's initial speed, initial disc
+   temperature and friction factor fitted to convergence as nuisance parameters (:mod:`.fitting`);
+   its residual's autocorrelation, and the noise's where that is larger, sets the effective sample
+   weights (:mod:`.weighting`).
 3. **Locate** where its residuals exceed the noise (segments) and the axis of the state along
    which they live (:mod:`.locate`).
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
