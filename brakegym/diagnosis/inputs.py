@@ -96,6 +96,7 @@ class PressureZero:
 
     @property
     def identifiable(self) -> bool:
+        """Whether the reading estimates the zero offset (see the class documentation)."""
         return (
             self.reading_bar is not None
             and self.samples >= MIN_ZERO_SAMPLES
@@ -105,7 +106,7 @@ class PressureZero:
 
     @property
     def offset_bar(self) -> float:
-        """The offset removed from the replay's input: the reading where identifiable, else 0."""
+        """The offset (bar) removed from the replay's input, the reading where identifiable, else 0."""
         return float(self.reading_bar) if self.identifiable else 0.0
 
 
