@@ -11,6 +11,7 @@ import pytest
 
 from brakegym import config as cfg
 from brakegym.cli import main
+from brakegym.diagnosis import DiagnosisRules
 from brakegym.diagnosis.inputs import chain_report, initial_disc_temperature
 from brakegym.diagnosis.noise import channel_runs, estimate_channel_noise, quantisation_step
 from brakegym.recordings import read_dataset
@@ -227,7 +228,7 @@ def test_the_noise_model_recovers_ar1_level_and_correlation(rho):
     time = np.arange(n) * 0.01
     signal = 2.0 * np.sin(time / 3.0) + 0.1 * time  # smooth on the estimator's window
     values = signal + ar1_noise(np.random.default_rng(7), (n,), sigma, rho)
-    model = estimate_channel_noise(time, values)
+    model = estimate_channel_noise(time, values, window_s=1.0)
     assert model.sigma == pytest.approx(sigma, rel=0.05)
     assert model.rho == pytest.approx(rho, abs=0.03)
     # What a white-noise estimate from neighbours' differences gives: sigma sqrt(1 - rho).
@@ -237,22 +238,19 @@ def test_the_noise_model_recovers_ar1_level_and_correlation(rho):
 
 def test_the_diagnosis_takes_each_channel_on_its_own_samples(noisy, chain):
     from brakegym.diagnosis.fitting import FitProblem
-    from brakegym.diagnosis.locate import estimate_noise, estimate_noise_models, residual_trace
+    from brakegym.diagnosis.locate import estimate_noise_models, residual_trace
     from brakegym.recordings.replay import replay
 
     recordings = read_dataset(noisy.folder).recordings
+    models = estimate_noise_models(recordings, DiagnosisRules().noise_window_s)
     # Speed is blank on most lines of a merged table: its noise comes from its own runs of samples.
-    noise = estimate_noise(recordings)
-    assert noise["speed_mps"] == pytest.approx(chain.channels.speed_mps.noise_sigma, rel=0.15)
-    # The accelerometer's AR(1) noise: a white estimate takes half of it for signal, the noise
-    # model recovers it.
+    assert models["speed_mps"].sigma == pytest.approx(chain.channels.speed_mps.noise_sigma, rel=0.15)
+    # The accelerometer's AR(1) noise: the noise model recovers its level and correlation.
     decel = chain.channels.decel_mps2
-    assert noise["decel_mps2"] < 0.7 * decel.noise_sigma
-    models = estimate_noise_models(recordings)
     assert models["decel_mps2"].sigma == pytest.approx(decel.noise_sigma, rel=0.1)
     assert models["decel_mps2"].rho == pytest.approx(decel.ar1_rho, abs=0.05)
     # The fit starts each recording's initial disc temperature from its first sample.
-    problem = FitProblem(recordings, noise)
+    problem = FitProblem(recordings, {channel: model.sigma for channel, model in models.items()})
     first_samples = [initial_disc_temperature(r).value_C for r in recordings]
     np.testing.assert_array_equal(problem.initial_nuisance[len(recordings) : 2 * len(recordings)], first_samples)
     # A replay's residual trace has its speed derivative and pressure axis at every instant.

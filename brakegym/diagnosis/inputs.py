@@ -7,15 +7,24 @@ reports of each recording's measurement chain as the data show it.
   kelvin per second while coasting, well inside the fit's nuisance bounds), else the ambient
   temperature. Either way it is only the start of the fitted nuisance, and the report says which
   recordings had it estimated and from what.
+- **Pressure-transducer zero offsets.** The replay takes a transducer's reading for cylinder
+  pressure; a zero offset would be a clamp force of gain x offset through the whole stop (and heat
+  into the instrumented disc's axle). Each transducer's reading before the brake onset (its median,
+  :func:`.noise.zero_reading`) is its offset when few of those readings are saturated at 0
+  (:class:`PressureZero`), and is subtracted from its samples before the replay
+  (:func:`zero_corrected`). A transducer saturates at 0 bar, so a negative offset reads 0 before
+  the brake like no offset at all: it cannot be identified from the data, nothing is subtracted,
+  and the report lists the transducer.
 - **The chain as seen.** Per channel: how many samples, the median interval and its spread (mixed
   and uneven rates), the blank cells inside the channel's own sampling (dropouts), the quantisation
-  step the values lie on; per pressure transducer and for an accelerometer, the reading while
-  nothing acts on it (a zero offset or bias, :func:`.noise.zero_reading`). Reported
-  under ``measurement_chain`` in the diagnosis report; nothing is corrected from it.
+  step the values lie on; per pressure transducer its zero reading and the offset removed, and for
+  an accelerometer the reading at standstill (its bias less g x gradient; not corrected). Reported
+  under ``measurement_chain`` in the diagnosis report.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,6 +41,10 @@ CHAIN_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
 # After the measured stop the deceleration steps to zero within a sample or two of the speed
 # channel; readings from this long after it are standstill.
 STANDSTILL_SETTLING_S = 0.5
+# A zero offset is read from at least this many samples before the brake onset, fewer than this
+# share of them saturated at 0 bar (see PressureZero).
+MIN_ZERO_SAMPLES = 10
+MAX_SATURATED_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -66,6 +79,67 @@ def initial_disc_temperature(recording: Recording) -> InitialDiscTemperature:
     return InitialDiscTemperature(recording.metadata.ambient_C, "ambient")
 
 
+@dataclass(frozen=True)
+class PressureZero:
+    """A pressure transducer's zero reading: the median of its samples before the brake onset
+    (bar; None without any), how many, and the share of them that read 0 bar or below (saturated).
+
+    A transducer's output saturates at 0 bar: with a negative zero offset it reads 0 before the
+    brake, as it does with none, so a reading at 0 says only that the offset is at most 0. With
+    fewer than ``MAX_SATURATED_SHARE`` of the samples saturated the median lies among the
+    unsaturated readings and estimates the offset; that needs an offset above 0.67 noise sigma
+    (smaller ones, under 0.015 bar for a 0.02 bar noise, are left in)."""
+
+    reading_bar: float | None
+    samples: int
+    saturated_share: float
+
+    @property
+    def identifiable(self) -> bool:
+        """Whether the reading estimates the zero offset (see the class documentation)."""
+        return (
+            self.reading_bar is not None
+            and self.samples >= MIN_ZERO_SAMPLES
+            and self.saturated_share < MAX_SATURATED_SHARE
+            and self.reading_bar > 0.0
+        )
+
+    @property
+    def offset_bar(self) -> float:
+        """The offset (bar) removed from the replay's input, the reading where identifiable, else 0."""
+        return float(self.reading_bar) if self.identifiable else 0.0
+
+
+def pressure_zeros(recording: Recording) -> dict[str, PressureZero]:
+    """Each pressure transducer's :class:`PressureZero`, from its samples before the brake onset."""
+    before = recording.time_s < brake_onset_s(recording)
+    out = {}
+    for column in recording.pressure_columns:
+        values = recording.channel(column)[before]
+        values = values[~np.isnan(values)]
+        reading = zero_reading(values)
+        if reading is None:
+            out[column] = PressureZero(None, 0, float("nan"))
+        else:
+            out[column] = PressureZero(reading["median"], reading["samples"], float(np.mean(values <= 0.0)))
+    return out
+
+
+def zero_corrected(recording: Recording) -> Recording:
+    """The recording with each transducer's identifiable zero offset subtracted from its pressures
+    (held at 0 bar below it: a cylinder pressure is not negative, and below the clamp threshold
+    a reading gives no force either way). The replay takes a transducer's zero offset for cylinder
+    pressure, a clamp force of gain x offset on every sample of the stop."""
+    zeros = pressure_zeros(recording)
+    offsets = {column: zero.offset_bar for column, zero in zeros.items() if zero.offset_bar > 0}
+    if not offsets:
+        return recording
+    data = recording.data.copy()
+    for column, offset in offsets.items():
+        data[column] = np.maximum(data[column].to_numpy(dtype=float) - offset, 0.0)
+    return dataclasses.replace(recording, data=data)
+
+
 def _channel_description(recording: Recording, channel: str) -> dict[str, Any] | None:
     values = recording.channel(channel)
     if values is None:
@@ -89,15 +163,28 @@ def _channel_description(recording: Recording, channel: str) -> dict[str, Any] |
 
 def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
     """The ``measurement_chain`` entry of the report: per recording, each channel's sampling as the
-    data show it, the pressure and accelerometer zero readings, and the initial disc temperature
-    where it was not given."""
-    out: dict[str, Any] = {"recordings": {}, "initial_disc_C_estimated": {}}
+    data show it, the pressure zero readings and the offsets removed, the accelerometer's reading
+    at standstill, and the initial disc temperature where it was not given; the transducers whose
+    zero offset cannot be identified."""
+    out: dict[str, Any] = {
+        "recordings": {},
+        "initial_disc_C_estimated": {},
+        "pressure_zero_offset_not_identifiable": {},
+    }
     for recording in recordings:
         channels = {c: d for c in CHAIN_CHANNELS if (d := _channel_description(recording, c)) is not None}
-        onset = brake_onset_s(recording)
-        before = recording.time_s < onset
-        zeros = {column: zero_reading(recording.channel(column)[before]) for column in recording.pressure_columns}
-        entry: dict[str, Any] = {"channels": channels, "pressure_before_brake_onset_bar": zeros}
+        zeros = pressure_zeros(recording)
+        entry: dict[str, Any] = {
+            "channels": channels,
+            "pressure_before_brake_onset_bar": {
+                column: None if zero.reading_bar is None else {"median": zero.reading_bar, "samples": zero.samples}
+                for column, zero in zeros.items()
+            },
+            "pressure_zero_offset_removed_bar": {column: zero.offset_bar for column, zero in zeros.items()},
+        }
+        unidentified = [column for column, zero in zeros.items() if not zero.identifiable]
+        if unidentified:
+            out["pressure_zero_offset_not_identifiable"][recording.stem] = unidentified
         decel = recording.channel(DECEL)
         stop = standstill_index(recording.speed_mps)
         if decel is not None and recording.metadata.decel_source == "accelerometer" and stop is not None:
@@ -112,4 +199,10 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
                 "start_C": initial.value_C,
                 "from": initial.describe(),
             }
+    if out["pressure_zero_offset_not_identifiable"]:
+        out["pressure_zero_offset_note"] = (
+            "these transducers read 0 bar on at least a quarter of their samples before the brake (or have "
+            "fewer than 10 there): a negative zero offset saturates at 0 like no offset at all (or one below about "
+            "0.7 noise sigma), so it cannot be identified and their readings are replayed as they are"
+        )
     return out

@@ -1,9 +1,8 @@
-"""Noise levels of the measured channels, and where the residuals of a replay exceed them.
+"""Noise models of the measured channels, and where the residuals of a replay exceed them.
 
-Noise: each channel's residual about a Savitzky-Golay smooth (cubic, 1.1 s window at 10 Hz),
-robust (MAD), corrected for what the smoother itself takes out of white noise (the residual of a
-projecting filter has variance sigma^2 (1 - h_0), h_0 its centre weight). Only the moving part of
-a recording is used for speed and deceleration (the step at standstill is not noise).
+Noise: each channel's AR(1) noise model (:mod:`.noise`), its level the noise sigma the fit's
+residuals are divided by. Only the moving part of a recording is used for speed and deceleration
+(the step at standstill is not noise).
 
 Attribution: the residual deceleration (minus the time derivative of the speed residual, so that
 an accelerometer blind to a slope cannot hide it) and the disc-temperature residual are binned
@@ -15,7 +14,7 @@ correlation ratio eta^2) says along which axis a mismatch lives. On clean data i
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,11 +23,10 @@ from scipy.signal import savgol_filter
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.format import Recording
 from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, bridged_pressures_bar, standstill_index
-from .noise import ChannelNoise, channel_runs, channel_samples, pooled_channel_noise
+from .noise import ChannelNoise, channel_samples, pooled_channel_noise
 
 NOISE_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)
-SMOOTH_WINDOW = 11
-SMOOTH_ORDER = 3
+SMOOTH_WINDOW = 11  # samples of the smooth that differentiates the speed residual
 ATTRIBUTION_BINS = 10
 BRAKING_PRESSURE_BAR = 0.3  # mean cylinder pressure above which a sample counts as braking
 SEGMENT_THRESHOLD = 3.0  # smoothed |residual| over noise that marks a segment
@@ -44,13 +42,6 @@ AXES = (
 )
 
 
-def _smoother_keep_share() -> float:
-    impulse = np.zeros(4 * SMOOTH_WINDOW)
-    impulse[2 * SMOOTH_WINDOW] = 1.0
-    centre = savgol_filter(impulse, SMOOTH_WINDOW, SMOOTH_ORDER)[2 * SMOOTH_WINDOW]
-    return 1.0 - centre
-
-
 def _moving(recording: Recording) -> np.ndarray:
     stop = standstill_index(recording.speed_mps, STANDSTILL_SPEED_MPS)
     mask = np.ones(len(recording), dtype=bool)
@@ -59,36 +50,11 @@ def _moving(recording: Recording) -> np.ndarray:
     return mask
 
 
-def estimate_noise(recordings: Sequence[Recording]) -> dict[str, float]:
-    """Robust noise level (1 sigma) of speed, deceleration and disc temperature; nan for a channel
-    no recording has."""
-    keep = _smoother_keep_share()
-    out = {}
-    for channel in NOISE_CHANNELS:
-        deviations = []
-        for recording in recordings:
-            values = recording.channel(channel)
-            if values is None:
-                continue
-            if channel in (SPEED, DECEL):
-                values = np.where(_moving(recording), values, np.nan)
-            # Smooth the channel's own runs without a dropout only (a missing sample would shift
-            # the window); a channel logged at its own rate is blank between its samples.
-            for run in channel_runs(recording.time_s, values, min_samples=3 * SMOOTH_WINDOW):
-                deviations.append(values[run] - savgol_filter(values[run], SMOOTH_WINDOW, SMOOTH_ORDER))
-        if deviations:
-            d = np.concatenate(deviations)
-            mad = np.median(np.abs(d - np.median(d))) / 0.6745
-            out[channel] = float(mad / np.sqrt(keep))
-        else:
-            out[channel] = float("nan")
-    return out
-
-
-def estimate_noise_models(recordings: Sequence[Recording]) -> dict[str, ChannelNoise]:
+def estimate_noise_models(recordings: Sequence[Recording], window_s: Mapping[str, float]) -> dict[str, ChannelNoise]:
     """The AR(1) noise model of speed, deceleration and disc temperature
-    (:func:`.noise.pooled_channel_noise`, one per channel over all recordings, on the same samples
-    as :func:`estimate_noise`); channels no recording has are left out."""
+    (:func:`.noise.pooled_channel_noise`, one per channel over all recordings, its smooth spanning
+    ``window_s[channel]`` seconds; speed and deceleration while moving); channels no recording has
+    are left out."""
     out = {}
     for channel in NOISE_CHANNELS:
         series = []
@@ -100,7 +66,7 @@ def estimate_noise_models(recordings: Sequence[Recording]) -> dict[str, ChannelN
                 values = np.where(_moving(recording), values, np.nan)
             series.append((recording.time_s, values))
         if series:
-            out[channel] = pooled_channel_noise(series)
+            out[channel] = pooled_channel_noise(series, window_s[channel])
     return out
 
 

@@ -10,12 +10,16 @@ times its median interval (a dropout).
 differences of neighbours) takes correlated noise for signal: for AR(1) noise with lag-1
 correlation rho, half the variance of the first differences is sigma^2 (1 - rho), 0.45 sigma for
 rho = 0.8. Here the residual of each run about a cubic Savitzky-Golay smooth of ``window``
-samples is the stationary filter g = delta - h applied to the noise (interior samples only, where
-the filter is exactly that). For AR(1) noise of level sigma and correlation rho its variance is
+samples (the odd number of the channel's samples that spans a window given in seconds,
+:func:`window_samples`) is the stationary filter g = delta - h applied to the noise (interior
+samples only, where the filter is exactly that). For AR(1) noise of level sigma and correlation rho its variance is
 sigma^2 A(rho) and its lag-1 covariance sigma^2 B(rho), with A(rho) = sum_ij g_i g_j rho^|i-j| and
 B(rho) = sum_ij g_i g_j rho^|i-j+1|. The measured ratio B/A gives rho (B/A increases with rho),
-then sigma = sqrt(var / A(rho)). The signal must be smooth on the window's scale (a cubic over
-``window`` samples); quantisation adds q^2/12 to the variance, white.
+then sigma = sqrt(var / A(rho)). The signal must be a cubic on the window's span, which is a
+property of the physics of a channel, not of its sample rate: the window is given in seconds and
+each channel takes as many of its own samples as span it (a 2 Hz thermometer 7 samples over 3 s,
+where a fixed 31 samples would span 15 s of a curving disc temperature and read its curvature as
+correlated noise). Quantisation adds q^2/12 to the variance, white.
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 
 GAP_OVER_INTERVAL = 1.5
-NOISE_WINDOW_SAMPLES = 31
 NOISE_POLYNOMIAL_ORDER = 3
+# A cubic's residual over fewer samples leaves too few degrees of freedom to tell rho apart.
+MIN_WINDOW_SAMPLES = 7
 RHO_GRID = np.linspace(-0.9, 0.99, 380)
 MIN_QUANTISED_VALUES = 10  # distinct values needed before a grid of values counts as quantisation
 
@@ -52,7 +57,21 @@ def channel_runs(time_s: np.ndarray, values: np.ndarray, min_samples: int = 3) -
     return [run for run in np.split(present, breaks) if run.size >= min_samples]
 
 
-@lru_cache(maxsize=8)
+def window_samples(window_s: float, interval_s: float) -> int:
+    """The odd number of samples ``interval_s`` apart that spans ``window_s`` seconds, at least
+    ``MIN_WINDOW_SAMPLES``."""
+    return max(2 * int(round(window_s / interval_s / 2.0)) + 1, MIN_WINDOW_SAMPLES)
+
+
+def median_interval_s(series: Sequence[tuple[np.ndarray, np.ndarray]]) -> float:
+    """The median interval (s) between a channel's own samples (its non-blank cells) over several
+    recordings' ``(time_s, values)``; NaN without two samples in any of them."""
+    intervals = [np.diff(time_s[~np.isnan(values)]) for time_s, values in series]
+    pooled = np.concatenate(intervals) if intervals else np.empty(0)
+    return float(np.median(pooled)) if pooled.size else float("nan")
+
+
+@lru_cache(maxsize=16)
 def _residual_filter(window: int, order: int) -> np.ndarray:
     """g = delta - h: the residual about the smooth of the centre sample, as a filter."""
     g = -savgol_coeffs(window, order)
@@ -60,15 +79,15 @@ def _residual_filter(window: int, order: int) -> np.ndarray:
     return g
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=16)
 def _ar1_moments(window: int, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """A(rho) and B(rho) of the module documentation on ``RHO_GRID``."""
+    """A(rho) and B(rho) of the module documentation on ``RHO_GRID``, through the filter's
+    autocorrelation c_k = sum_{i - j = k} g_i g_j: A = sum_k c_k rho^|k|, B = sum_k c_k rho^|k+1|."""
     g = _residual_filter(window, order)
-    lags = np.subtract.outer(np.arange(window), np.arange(window))
-    outer = np.outer(g, g)
-    distance, shifted = np.abs(lags), np.abs(lags + 1)
-    a = np.array([np.sum(outer * rho**distance) for rho in RHO_GRID])
-    b = np.array([np.sum(outer * rho**shifted) for rho in RHO_GRID])
+    lags = np.arange(-(window - 1), window)
+    c = np.correlate(g, g, mode="full")
+    a = np.power.outer(RHO_GRID, np.abs(lags)) @ c
+    b = np.power.outer(RHO_GRID, np.abs(lags + 1)) @ c
     return a, b
 
 
@@ -77,32 +96,32 @@ class ChannelNoise:
     """A channel's noise model. ``sigma``: marginal standard deviation (channel units);
     ``rho``: lag-1 autocorrelation per sample of the channel's own sampling; ``white_sigma``: what
     the same residual gives when the noise is taken as white (rho = 0); ``samples``: residual
-    samples used."""
+    samples used; ``window``: samples of the smooth."""
 
     sigma: float
     rho: float
     white_sigma: float
     samples: int
+    window: int
 
 
 def estimate_channel_noise(
-    time_s: np.ndarray,
-    values: np.ndarray,
-    window: int = NOISE_WINDOW_SAMPLES,
-    order: int = NOISE_POLYNOMIAL_ORDER,
+    time_s: np.ndarray, values: np.ndarray, window_s: float, order: int = NOISE_POLYNOMIAL_ORDER
 ) -> ChannelNoise:
-    """The AR(1) noise model of one channel (see the module documentation); NaN where no run is
-    long enough (``window`` + 2 samples)."""
-    return pooled_channel_noise([(np.asarray(time_s, float), np.asarray(values, float))], window, order)
+    """The AR(1) noise model of one channel, its smooth spanning ``window_s`` seconds (see the
+    module documentation); NaN where no run is long enough (the window's samples + 2)."""
+    return pooled_channel_noise([(np.asarray(time_s, float), np.asarray(values, float))], window_s, order)
 
 
 def pooled_channel_noise(
-    series: Sequence[tuple[np.ndarray, np.ndarray]],
-    window: int = NOISE_WINDOW_SAMPLES,
-    order: int = NOISE_POLYNOMIAL_ORDER,
+    series: Sequence[tuple[np.ndarray, np.ndarray]], window_s: float, order: int = NOISE_POLYNOMIAL_ORDER
 ) -> ChannelNoise:
     """:func:`estimate_channel_noise` over several recordings' ``(time_s, values)`` of one channel,
-    with one noise model for all of them."""
+    with one noise model for all of them (one window: the channel's median interval over all)."""
+    interval_s = median_interval_s(series)
+    if not np.isfinite(interval_s) or interval_s <= 0:
+        return ChannelNoise(float("nan"), float("nan"), float("nan"), 0, 0)
+    window = window_samples(window_s, interval_s)
     g = _residual_filter(window, order)
     squares, products, count, pairs = 0.0, 0.0, 0, 0
     for time_s, values in series:
@@ -113,14 +132,14 @@ def pooled_channel_noise(
             count += residual.size
             pairs += residual.size - 1
     if count < 2:
-        return ChannelNoise(float("nan"), float("nan"), float("nan"), count)
+        return ChannelNoise(float("nan"), float("nan"), float("nan"), count, window)
     variance, covariance = squares / count, products / pairs
     a, b = _ar1_moments(window, order)
     ratio = b / a
     rho = float(np.interp(covariance / variance, ratio, RHO_GRID))
     sigma = float(np.sqrt(variance / np.interp(rho, RHO_GRID, a)))
     white_sigma = float(np.sqrt(variance / a[np.argmin(np.abs(RHO_GRID))]))
-    return ChannelNoise(sigma, rho, white_sigma, count)
+    return ChannelNoise(sigma, rho, white_sigma, count, window)
 
 
 def noise_model_entry(model: ChannelNoise) -> dict[str, float | int | None]:
@@ -134,6 +153,7 @@ def noise_model_entry(model: ChannelNoise) -> dict[str, float | int | None]:
         "lag1_autocorrelation": shown(model.rho, 3),
         "white_noise_sigma": shown(model.white_sigma, 5),
         "samples": model.samples,
+        "window_samples": model.window,
     }
 
 

@@ -7,12 +7,27 @@ before it runs, on seeds they were not tuned on: change a rule, and it must be j
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
+
+
+def _default_noise_windows_s() -> dict[str, float]:
+    return {SPEED: 2.0, DECEL: 1.0, DISC_TEMPERATURE: 3.0}
 
 
 @dataclass(frozen=True)
 class DiagnosisRules:
     """The thresholds of :class:`~brakegym.diagnosis.pipeline.Diagnoser`."""
+
+    # -- noise ----------------------------------------------------------------------------------
+    #: per channel, the span (s) of the cubic smooth whose residual gives its noise model
+    #: (:mod:`.noise`); each channel takes as many of its own samples as span it. The signal must be
+    #: a cubic over the span: a deceleration rises within about a second of brake onset (on
+    #: effect-free 10 Hz sets a 3 s span reads white 0.020 m/s^2 as 0.025 with rho 0.3, 1 s reads
+    #: 0.021 with rho 0.03), a speed and a disc temperature curve over longer.
+    noise_window_s: Mapping[str, float] = field(default_factory=_default_noise_windows_s)
 
     # -- selection ----------------------------------------------------------------------------
     #: a candidate must lower the effective-sample BIC by at least this much (negative)

@@ -2,14 +2,24 @@
 diagnosis judges candidates by (chi^2, per-channel RMS, the likeness of two corrections).
 
 An information criterion that counts every sample of an autocorrelated residual as independent
-over-rewards tiny effects. Each channel's rows are weighted by its effective sample share,
-``(1 - rho) / (1 + rho)`` for the residual's pooled lag-1 autocorrelation rho
-(:func:`brakegym.statistics.effective_sample_share`), taken from the unmodified model's fit.
+over-rewards tiny effects, and an interval that does is too narrow. Each channel's rows are
+weighted by its effective sample share, ``(1 - rho) / (1 + rho)``
+(:func:`brakegym.statistics.effective_sample_share`), for rho the larger of
+
+- the pooled lag-1 autocorrelation of the unmodified model's residual (its misfit, smooth in
+  time, is what candidates are judged against), and
+- the lag-1 autocorrelation of the channel's noise (:mod:`.noise`, per sample of the channel's
+  own sampling, as the fit's rows are): a residual that is all noise cannot hold more independent
+  samples than its noise, whatever the nuisance fit took out of its correlation.
+
+The rows are already divided by the noise level (the AR(1) model's marginal sigma), so a
+channel's effective chi^2 is its share times the sum of its squares.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -22,9 +32,10 @@ CHANNEL_NAMES = {SPEED: "speed", DECEL: "decel", DISC_TEMPERATURE: "T_disc"}
 
 class Weighting:
     """Effective sample weights of a fit problem's rows, from a reference residual (the
-    unmodified model's); prior rows weigh 1."""
+    unmodified model's) and each channel's noise autocorrelation ``noise_rho`` (lag 1, per sample
+    of the channel; a channel left out counts its residual's alone); prior rows weigh 1."""
 
-    def __init__(self, problem: FitProblem, residual: np.ndarray) -> None:
+    def __init__(self, problem: FitProblem, residual: np.ndarray, noise_rho: Mapping[str, float]) -> None:
         self.problem = problem
         self.weights = np.ones(len(residual))
         self.channel_shares: dict[str, float] = {}
@@ -33,7 +44,8 @@ class Weighting:
             if not rows.any():
                 continue
             per_recording = [residual[rows & (problem.recording_of == i)] for i in range(problem.n)]
-            share = effective_sample_share(lag1_autocorrelation(per_recording))
+            rho = max(lag1_autocorrelation(per_recording), noise_rho.get(channel, -1.0))
+            share = effective_sample_share(rho)
             self.weights[rows] = share
             self.channel_shares[channel] = share
         #: effective samples of the measured rows (prior rows not counted)
