@@ -1,0 +1,151 @@
+"""Field campaigns on a rail condition (docs/adhesion.md, "Campaigns on a rail"): each stop's rail
+mu_0 drawn from the seed and the stop's number, stops with adhesion and WSP, the same rows bit for
+bit whatever the chunks and the executor; the lognormal rail scatter; the inverse of the peak
+adhesion."""
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from brakegym import config as cfg
+from brakegym.campaigns import RAIL_STOP_COLUMNS, field_campaign, rail_field_campaign
+from brakegym.cli import main
+from brakegym.execution import InlineExecutor, LocalExecutor
+from brakegym.physics import static_friction_factor
+from brakegym.plants import (
+    polach_law,
+    rail_friction_factor_for_samples,
+    rail_static_friction_relative_sigma,
+    wheel_rail_contact,
+)
+from brakegym.units import STANDARD_GRAVITY_MPS2
+
+
+@pytest.fixture(scope="module")
+def small_campaign() -> cfg.FieldCampaign:
+    """Emergency stops from 120 km/h, empty, both pad sets and actuations: 4 field applications,
+    3 repetitions, 12 stops."""
+    campaign = cfg.load("campaigns", "field2022")
+    factors = {**campaign.factors, "brake_mode": ["emergency"], "load": ["empty"], "initial_speed_kmh": [120]}
+    return campaign.model_copy(update={"factors": factors, "repetitions": 3})
+
+
+@pytest.fixture(scope="module")
+def wsp_config():
+    from brakegym.agents.wsp import load_wsp_config
+
+    return load_wsp_config("wsp")
+
+
+def _low_campaign(small_campaign, wsp_config, **options) -> pd.DataFrame:
+    return rail_field_campaign(
+        small_campaign,
+        cfg.load("setups", "mcs-75-25"),
+        5,
+        cfg.load("rail_conditions", "low"),
+        cfg.load("wsp_valves", "axle"),
+        wsp_config,
+        **options,
+    ).applications
+
+
+@pytest.fixture(scope="module")
+def low_reference(small_campaign, wsp_config) -> pd.DataFrame:
+    """The low-rail campaign with the reference WSP in this process, one chunk."""
+    return _low_campaign(small_campaign, wsp_config, chunk_size=1000)
+
+
+@pytest.mark.parametrize(
+    ("executor", "chunk_size"), [(InlineExecutor(kernel_threads=1), 5), (LocalExecutor(2), 4)], ids=["inline", "local"]
+)
+def test_rail_campaign_the_same_whatever_the_executor_and_chunk_size(
+    small_campaign, wsp_config, low_reference, executor, chunk_size
+):
+    result = _low_campaign(small_campaign, wsp_config, chunk_size=chunk_size, executor=executor)
+    pd.testing.assert_frame_equal(result, low_reference, check_exact=True)
+
+
+def test_rail_campaign_rows_are_the_field_campaigns_stops_on_a_scattered_rail(small_campaign, low_reference):
+    """The same applications and running-resistance draws as the field campaign (the rail's draw
+    has a stream of its own), the rail columns added; each stop's mu_0 is the condition's times its
+    factor; the reference WSP keeps every axle from locking for long; the slipperier the drawn rail,
+    the longer the stop (a rank correlation over the stops)."""
+    field = field_campaign(small_campaign, cfg.load("setups", "mcs-75-25"), 5).applications
+    assert list(low_reference.columns) == [*field.columns, *RAIL_STOP_COLUMNS]
+    for column in ("brake_mode", "load", "pad_set", "actuation", "v0_kmh", "repetition", "running_resistance_A_N"):
+        pd.testing.assert_series_equal(low_reference[column], field[column], check_exact=True)
+    low = cfg.load("rail_conditions", "low")
+    factor = rail_friction_factor_for_samples(low, 5, np.arange(len(low_reference)))
+    np.testing.assert_array_equal(low_reference.rail_friction_factor, factor)
+    np.testing.assert_allclose(low_reference.rail_static_friction, low.static_friction * factor, rtol=1e-15)
+    assert low_reference.rail_friction_factor.std() > 0.05
+    # The drawn peaks around the condition's 0.07 (its scatter 15 %).
+    assert 0.04 < low_reference.rail_peak_adhesion.min() and low_reference.rail_peak_adhesion.max() < 0.11
+    assert (low_reference.longest_locked_s < 0.5).all()
+    assert (low_reference.slide_energy_MJ > 0).all()
+    # The adhesion limits the stop: the field campaign's stops are far shorter than any here.
+    assert low_reference.braking_distance_m.min() > 1.2 * field.braking_distance_m.max()
+    same_actuation = low_reference[low_reference.actuation == "EP"]
+    rank = same_actuation[["rail_peak_adhesion", "braking_distance_m"]].rank().corr().iloc[0, 1]
+    assert rank < -0.5
+
+
+def test_line_scatter_takes_its_widest_section_and_scales_every_section(small_campaign):
+    line = cfg.load("lines", "low_patch")
+    sigmas = [cfg.load("rail_conditions", s.rail_condition).static_friction_relative_sigma for s in line.sections]
+    assert rail_static_friction_relative_sigma(line) == max(sigmas)
+
+
+def test_rail_scatter_is_lognormal_with_mean_one_and_the_relative_sigma():
+    """static_friction_factor: E[f] = 1 and std(f) = sigma exactly (Gauss-Hermite quadrature,
+    exact for these integrands to round-off), positive for any normal, and per stop the same
+    whatever the other stops drawn with it."""
+    nodes, weights = np.polynomial.hermite_e.hermegauss(80)
+    weights = weights / weights.sum()
+    for sigma in (0.05, 0.15, 0.4):
+        f = static_friction_factor(sigma, nodes)
+        mean = float(weights @ f)
+        assert mean == pytest.approx(1.0, abs=1e-12)
+        assert np.sqrt(weights @ (f - mean) ** 2) == pytest.approx(sigma, rel=1e-10)
+    assert static_friction_factor(0.15, np.array([-40.0, 40.0])).min() > 0
+    assert static_friction_factor(0.0, np.array([-3.0, 3.0])).tolist() == [1.0, 1.0]
+    low = cfg.load("rail_conditions", "low")
+    np.testing.assert_array_equal(
+        rail_friction_factor_for_samples(low, 9, np.arange(10, 20))[3:6],
+        rail_friction_factor_for_samples(low, 9, np.arange(13, 16)),
+    )
+
+
+@pytest.mark.parametrize("name", ["dry", "wet", "low"])
+@pytest.mark.parametrize("load", ["empty", "max"])
+def test_static_friction_for_a_peak_adhesion_inverts_peak_adhesion(name, load):
+    """PolachLaw.with_peak_adhesion: the mu_0 found gives the asked peak at that contact and speed
+    (PolachLaw.peak_adhesion), and the condition's own peak gives back the condition's mu_0."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    wheel_load = vehicle.mass_kg(load) * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
+    stiffness = wheel_rail_contact(vehicle).creep_stiffness_N(wheel_load)
+    law = polach_law(cfg.load("rail_conditions", name))
+    for speed in (10.0, 30.0):
+        own_peak = law.peak_adhesion(speed, wheel_load, stiffness)[0]
+        assert law.with_peak_adhesion(own_peak, speed, wheel_load, stiffness).static_friction == pytest.approx(
+            law.static_friction, rel=1e-4
+        )
+        for peak in (0.05, 0.12, 0.30):
+            found = law.with_peak_adhesion(peak, speed, wheel_load, stiffness)
+            assert found.peak_adhesion(speed, wheel_load, stiffness)[0] == pytest.approx(peak, abs=2e-6)
+            assert dataclasses.replace(found, static_friction=law.static_friction) == law
+
+
+def test_rail_options_only_where_they_apply(capsys):
+    for args, message in (
+        (["mcs", "--campaign", "dyno", "--condition", "low"], "--condition and --line are for the field campaign"),
+        (["mcs", "--campaign", "field", "--wsp", "none"], "--wsp and --wsp-valves need a rail"),
+        (["mcs", "--campaign", "field", "--condition", "icy"], "unknown rail condition 'icy'"),
+    ):
+        assert main(args) == 2
+        assert message in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["mcs", "--campaign", "field", "--condition", "low", "--line", "low_patch"])
+    assert "not allowed with argument" in capsys.readouterr().err
