@@ -4,23 +4,32 @@ bit whatever the chunks and the executor; the lognormal rail scatter; the invers
 adhesion."""
 
 import dataclasses
+import functools
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from brakegym import config as cfg
+from brakegym.applications import TrainApplication, run_commanded_stops, train_conditions
 from brakegym.campaigns import RAIL_STOP_COLUMNS, field_campaign, rail_field_campaign
 from brakegym.cli import main
+from brakegym.diagnosis.adhesion import read_adhesion
+from brakegym.effects import apply_effects, make_effect
 from brakegym.execution import InlineExecutor, LocalExecutor
 from brakegym.physics import static_friction_factor
 from brakegym.plants import (
+    brake_cylinder,
+    nominal_draw,
     polach_law,
     rail_friction_factor_for_samples,
     rail_static_friction_relative_sigma,
+    train_plant,
+    wheel_rail_adhesion,
     wheel_rail_contact,
 )
 from brakegym.units import STANDARD_GRAVITY_MPS2
+from brakegym.wheel_slide import wsp_train_stops
 
 
 @pytest.fixture(scope="module")
@@ -149,3 +158,112 @@ def test_rail_options_only_where_they_apply(capsys):
     with pytest.raises(SystemExit):
         main(["mcs", "--campaign", "field", "--condition", "low", "--line", "low_patch"])
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------------------
+# The diagnosis's adhesion_limit and the rail's creep curve
+
+
+def _cap_braking_distances_m(vehicle, adhesions: np.ndarray) -> np.ndarray:
+    """Braking distances of the nominal model (no adhesion option) with the diagnosis's
+    adhesion_limit at each of ``adhesions``: emu_8axle empty, emergency, EP, 120 km/h."""
+    plant = train_plant(vehicle)
+    n = len(adhesions)
+    conditions = train_conditions(
+        vehicle,
+        mass_kg=np.full(n, vehicle.mass_kg("empty")),
+        initial_speed_mps=np.full(n, 120 / 3.6),
+        draw=nominal_draw(cfg.load("materials", vehicle.material), n, plant.disc_shape),
+        running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N),
+    )
+    model = apply_effects(plant, conditions, [make_effect("adhesion_limit", adhesion=adhesions)])
+    command = np.full((n, plant.n_axles), vehicle.brake_pressure_bar("emergency", "empty"))
+    return run_commanded_stops(
+        model.plant,
+        model.conditions,
+        [brake_cylinder(cfg.load("pneumatics", "EP"))] * n,
+        command,
+        np.ones(n),
+        plant.caliper.clamp_force_N(command),
+        friction_modifiers=model.friction_modifiers,
+        extra_forces=model.extra_forces,
+    ).braking_distance_m
+
+
+def _fitted_cap(vehicle, braking_distance_m: float) -> float:
+    """The adhesion_limit whose stop brakes over ``braking_distance_m`` (the fit on that one
+    number: the distance falls monotonically with the cap)."""
+    adhesions = np.linspace(0.04, 0.10, 61)
+    distances = _cap_braking_distances_m(vehicle, adhesions)
+    assert np.all(np.diff(distances) < 0)
+    return float(np.interp(braking_distance_m, distances[::-1], adhesions[::-1]))
+
+
+def _ideal_wsp_braking_distance_m(vehicle, adhesion) -> float:
+    """Every axle at the peak of the rail's creep curve at each speed from 120 km/h (an ideal
+    WSP): d = integral of v dv / a(v), a = (peak(v) m g + F_R(v)) / M, after the EP cylinders'
+    response (v0 times dead time plus time constant)."""
+    cylinder = cfg.load("pneumatics", "EP")
+    mass_kg = vehicle.mass_kg("empty")
+    wheel_load_N = mass_kg * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
+    stiffness_N = adhesion.contact.creep_stiffness_N(wheel_load_N)
+    body_mass_kg = mass_kg - vehicle.n_axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
+    resistance = vehicle.running_resistance
+    speeds = np.linspace(0.05, 120 / 3.6, 300)
+    peaks = np.array([adhesion.law.peak_adhesion(v, wheel_load_N, stiffness_N, n_creeps=4001)[0] for v in speeds])
+    force = peaks * mass_kg * STANDARD_GRAVITY_MPS2 + resistance.A_N + resistance.B_N_per_mps * speeds
+    deceleration = (force + resistance.C_N_per_mps2 * speeds**2) / body_mass_kg
+    response_m = 120 / 3.6 * (cylinder.dead_time_s + cylinder.time_constant_s)
+    return response_m + float(np.trapezoid(speeds / deceleration, speeds))
+
+
+def test_adhesion_limit_is_the_rails_peak_times_the_wsps_utilisation(wsp_config):
+    """docs/adhesion.md, "One adhesion": on a uniform low rail (emu_8axle empty, emergency EP,
+    120 km/h) the diagnosis's cap fitted to an ideal WSP's stop (every axle at the creep curve's
+    peak) is the rail's peak adhesion over the stop (the peak rises a few per cent as the train
+    slows, the cap does not: the cap is its mean as the stop weighs it), up to the wheelsets'
+    inertia (4 % here: the cap acts on the brake force, the peak on the rail's). Fitted to the
+    reference WSP's stop it is lower, by the WSP's utilisation: the ratio of the two caps is the
+    ratio of the ideal's and the WSP's braking distances past the cylinders' response, within 3 %.
+    The reading of the cap names the low rail, with a mu_0 that gives the fitted peak."""
+    from brakegym.agents.wsp import WspController
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    low = cfg.load("rail_conditions", "low")
+    adhesion = wheel_rail_adhesion(vehicle, low)
+    ideal_m = _ideal_wsp_braking_distance_m(vehicle, adhesion)
+    wsp_m = float(
+        wsp_train_stops(
+            vehicle,
+            [TrainApplication("empty", "emergency", "EP", 120.0)],
+            adhesion,
+            cfg.load("wsp_valves", "axle"),
+            functools.partial(WspController, wsp_config),
+        ).summary.braking_distance_m[0]
+    )
+    ideal_cap, wsp_cap = _fitted_cap(vehicle, ideal_m), _fitted_cap(vehicle, wsp_m)
+    # The peak over the stop as a constant cap acts: the mean of 1 / peak(v) weighted by v dv.
+    wheel_load_N = vehicle.mass_kg("empty") * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
+    stiffness_N = adhesion.contact.creep_stiffness_N(wheel_load_N)
+    speeds = np.linspace(0.5, 120 / 3.6, 200)
+    peaks = np.array([adhesion.law.peak_adhesion(v, wheel_load_N, stiffness_N, n_creeps=4001)[0] for v in speeds])
+    stop_peak = float(np.trapezoid(speeds, speeds) / np.trapezoid(speeds / peaks, speeds))
+    assert peaks.min() == pytest.approx(low.peak_adhesion, rel=0.02)  # the config's, rounded
+    # The cap limits the brake force, which decelerates the wheelsets too; the rail's force only
+    # the body: the cap lies between the peak and the peak times m / M (M = m - n J / r^2), where
+    # the ideal's lag against the cylinders' response (taken whole) puts it.
+    mass_kg = vehicle.mass_kg("empty")
+    body_mass_kg = mass_kg - vehicle.n_axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
+    assert stop_peak < ideal_cap < stop_peak * mass_kg / body_mass_kg
+    cylinder = cfg.load("pneumatics", "EP")
+    response_m = 120 / 3.6 * (cylinder.dead_time_s + cylinder.time_constant_s)
+    utilisation = (ideal_m - response_m) / (wsp_m - response_m)
+    assert 0.7 < utilisation < 0.97
+    assert wsp_cap / ideal_cap == pytest.approx(utilisation, rel=0.03)
+    reading = read_adhesion(ideal_cap, vehicle, vehicle.mass_kg("empty"))
+    assert reading.nearest_condition == "low"
+    assert reading.static_friction == pytest.approx(low.static_friction * ideal_cap / low.peak_adhesion, rel=0.05)
+    print(
+        f"stop peak {stop_peak:.4f} ({peaks.min():.4f}-{peaks.max():.4f}), ideal {ideal_m:.1f} m, cap {ideal_cap:.4f}"
+    )
+    print(f"WSP {wsp_m:.1f} m, cap {wsp_cap:.4f}, utilisation {utilisation:.3f}")
