@@ -15,5 +15,5 @@ DEFAULT_CHUNK_STOPS = 1000
 # chunk because an estimator's batches are small (a subset simulation's step evaluates one row
 # per chain, a few hundred).
 DEFAULT_TAIL_CHUNK_STOPS = 250
-#: The step of stops with wheel-slide protection, s: WSP controllers run at 50-100 Hz.
+# The step of stops with wheel-slide protection, in s (WSP controllers run at 50-100 Hz).
 DEFAULT_CONTROL_STEP_S = 0.02

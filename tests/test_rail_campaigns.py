@@ -94,8 +94,9 @@ def test_rail_campaign_rows_are_the_field_campaigns_stops_on_a_scattered_rail(sm
     assert 0.04 < low_reference.rail_peak_adhesion.min() and low_reference.rail_peak_adhesion.max() < 0.11
     assert (low_reference.longest_locked_s < 0.5).all()
     assert (low_reference.slide_energy_MJ > 0).all()
-    # The adhesion limits the stop: the field campaign's stops are far shorter than any here.
-    assert low_reference.braking_distance_m.min() > 1.2 * field.braking_distance_m.max()
+    # The adhesion limits the stop: every stop longer than its stop without a rail, by far on average.
+    assert (low_reference.braking_distance_m > field.braking_distance_m).all()
+    assert low_reference.braking_distance_m.mean() > 1.3 * field.braking_distance_m.mean()
     same_actuation = low_reference[low_reference.actuation == "EP"]
     rank = same_actuation[["rail_peak_adhesion", "braking_distance_m"]].rank().corr().iloc[0, 1]
     assert rank < -0.5
