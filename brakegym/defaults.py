@@ -15,3 +15,7 @@ DEFAULT_CHUNK_STOPS = 1000
 # chunk because an estimator's batches are small (a subset simulation's step evaluates one row
 # per chain, a few hundred).
 DEFAULT_TAIL_CHUNK_STOPS = 250
+
+# The tail estimators of brakegym tail and brakegym.safety.tail.tail (docs/tails.md), named here so
+# that the command line offers them without importing the estimators.
+TAIL_METHODS = ("subset", "is", "brute")
