@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import config as cfg
-from .applications import TrainApplication
+from .applications import MAX_STOP_TIME_S, TrainApplication
 from .physics import PolachLaw, RailSections
 from .physics.adhesion import creep
 from .plants import RAIL_ADHESION_STREAM, train_scatter, wheel_rail_adhesion
@@ -60,16 +60,18 @@ ADHESION_UTILISATION_SOURCE = (
     "below is brakegym's, written to match that description; it is not quoted from either standard."
 )
 ADHESION_UTILISATION_DEFINITION = (
-    "eta = integral of sum_i F_i ds / integral of sum_i min(F_peak,i, F_brake,i) ds over the stop: "
-    "the distance-weighted mean of the adhesion used (creep force F_i of axle i over its wheel load) "
-    "over the mean of the adhesion available to it, F_peak,i = 2 Q_w max_s f(s, s v) the peak of the "
-    "rail's creep-force law at the train speed v and the wheel load Q_w, capped at the force "
-    "F_brake,i = sum over the axle's discs of mu F_C(p_supply) r_fric / r that the brake control's "
-    "pressure (before the WSP valves) asks of the rail. On a rail where the brake asks more than the "
-    "rail gives (the WSP test) the cap never acts and eta is the adhesion used over the peak; on a "
-    "rail that gives more, eta is the share of the brake's demand that reached the rail. The "
-    "distance weighting makes the mean adhesion used equal to the deceleration a test track measures "
-    "from the stopping distance, v0^2 / (2 g s) without the running resistance."
+    "eta = integral of sum_i F_i ds / integral of sum_i min(F_peak,i, (M / m) F_brake,i) ds over the "
+    "stop: the distance-weighted mean of the adhesion used (creep force F_i of axle i over its wheel "
+    "load) over the mean of the adhesion available to it. F_peak,i = 2 Q_w max_s f(s, s v) is the "
+    "peak of the rail's creep-force law at the train speed v and the wheel load Q_w; it is capped at "
+    "what the brake can put on the rail with the wheels rolling, (M / m) F_brake,i, F_brake,i = sum "
+    "over the axle's discs of mu F_C(p_supply) r_fric / r at the brake control's pressure (before the "
+    "WSP valves), M / m the body's share of the effective mass (the rest of the brake torque "
+    "decelerates the wheelsets). Where the brake asks more than the rail gives (the WSP test) the cap "
+    "never acts and eta is the adhesion used over the peak; on a rail that gives more, eta is the "
+    "share of the brake's demand that reached the rail (1 when nothing slides). The distance "
+    "weighting makes the mean adhesion used the deceleration a test track measures from the stopping "
+    "distance, v0^2 / (2 g s), less the running resistance."
 )
 
 
@@ -199,42 +201,60 @@ class PeakAdhesionTable:
         return np.take_along_axis(by_section, section, axis=0)
 
 
-def adhesion_limited_distance_m(
+IDEAL_DISTANCE_DEFINITION = (
+    "the stop of a perfect WSP: every axle at every moment as much force as the rail and the brake "
+    "allow, dv/dt = -min((m g mean_i peak_i(v, x) + F_R(v)) / M, (D(t) + F_R(v)) / m): the rail's "
+    "peak adhesion under each axle decelerating the body (mass M = m - n J / r^2), or the brake's "
+    "demand D(t) (sum over the axles of mu F_C(p_supply) r_fric / r, from the dry stop at the same "
+    "time after the command, so the brake's response is in it) decelerating body and wheelsets "
+    "(effective mass m), whichever is less. On a rail where the brake asks more than the rail gives "
+    "it is the adhesion-limited stop after the brake's response; on the dry rail it is the dry stop."
+)
+
+
+def ideal_distance_m(
     table: PeakAdhesionTable,
     body_mass_kg: float,
     mass_kg: float,
     resistance: cfg.RunningResistance,
     resistance_A_N: float,
     initial_speed_mps: float,
-    response_time_s: float,
-    step_m: float = 0.25,
+    demand_time_s: np.ndarray,
+    demand_N: np.ndarray,
+    command_time_s: float = 0.0,
+    time_step_s: float = 0.01,
 ) -> float:
-    """The ideal stop every WSP falls short of: after the brake's response (the distance
-    ``initial_speed_mps response_time_s``, what a first-order lag behind a dead time loses against
-    a step), every axle at the peak adhesion of the rail under it at every speed, d(v^2)/ds =
-    -2 (peak m g + F_R(v)) / M, integrated in position by the midpoint rule (rail sections apply
-    at the train's position)."""
-    position = initial_speed_mps * response_time_s
-    v_squared = initial_speed_mps**2
+    """The distance of :data:`IDEAL_DISTANCE_DEFINITION` from the brake command at
+    ``command_time_s``, the train running from ``initial_speed_mps`` at time 0 (coasting on its
+    running resistance until the demand rises), by the midpoint rule in time; ``demand_N``
+    (steps,) the train's total demand at ``demand_time_s``, held beyond both ends; the last step
+    is cut where the speed reaches zero."""
+    demand_time_s, demand_N = np.asarray(demand_time_s, dtype=float), np.asarray(demand_N, dtype=float)
+    weight_N = mass_kg * STANDARD_GRAVITY_MPS2
 
-    def deceleration(v_sq: float, x: float) -> float:
-        v = np.sqrt(max(v_sq, 0.0))
-        section = table.section_of(np.array([x]))[:1]
-        peak = float(table.peak(np.array([v]), section)[0, 0])
-        force = (
-            peak * mass_kg * STANDARD_GRAVITY_MPS2
-            + resistance_A_N
-            + v * (resistance.B_N_per_mps + resistance.C_N_per_mps2 * v)
-        )
-        return force / body_mass_kg
+    def deceleration(t: float, x: float, v: float) -> float:
+        v = max(v, 0.0)
+        peak = float(table.peak(np.array([v]), table.section_of(np.array([x]))).mean())
+        running = resistance_A_N + v * (resistance.B_N_per_mps + resistance.C_N_per_mps2 * v)
+        brake = float(np.interp(t, demand_time_s, demand_N))
+        return min((peak * weight_N + running) / body_mass_kg, (brake + running) / mass_kg)
 
+    t, x, v = 0.0, 0.0, float(initial_speed_mps)
+    position_at_command_m = 0.0 if command_time_s <= 0 else None
     while True:
-        half = v_squared - deceleration(v_squared, position) * step_m
-        drop = 2.0 * deceleration(half, position + 0.5 * step_m) * step_m
-        if drop >= v_squared:
-            return position + step_m * v_squared / drop
-        v_squared -= drop
-        position += step_m
+        a0 = deceleration(t, x, v)
+        half_v = v - 0.5 * time_step_s * a0
+        a = deceleration(t + 0.5 * time_step_s, x + 0.5 * time_step_s * v, half_v)
+        if position_at_command_m is None and t + time_step_s > command_time_s:
+            position_at_command_m = x + (command_time_s - t) * half_v
+        if a * time_step_s >= v:
+            # Uniform deceleration over the rest of the last step.
+            return x + 0.5 * v * v / a - position_at_command_m
+        x += time_step_s * half_v
+        v -= time_step_s * a
+        t += time_step_s
+        if t > MAX_STOP_TIME_S:
+            raise RuntimeError(f"the ideal stop from {initial_speed_mps} m/s never ends: no brake demand")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -251,6 +271,7 @@ class WspTraces:
 
     def __init__(self, table: PeakAdhesionTable) -> None:
         self.table = table
+        self.rolling_share = np.ones(0)  # M / m per train: the brake force's share that reaches the rail
         self.rows: dict[str, list[np.ndarray]] = {
             name: []
             for name in (
@@ -276,6 +297,7 @@ class WspTraces:
         available = self.table.peak(speed, self.table.section_of(position))
         supply = np.asarray(getattr(sim.pressure, "supply_bar", sim.pressure.pressure_bar), dtype=float)
         demand_N = (sim.disc[MU] * sim.clamp_force_N(supply)).sum(axis=1) * sim.plant.radius_ratio
+        self.rolling_share = sim.body_mass_kg / sim.mass_kg
         rows = self.rows
         rows["time_s"].append(np.full(speed.shape, sim.time_s))
         rows["position_m"].append(position)
@@ -298,7 +320,8 @@ class WspTraces:
         traces = self.arrays(train)
         step_m = np.diff(traces["position_m"])
         used = traces["adhesion_used"].sum(axis=1)
-        available = np.minimum(traces["adhesion_available"], traces["adhesion_demanded"]).sum(axis=1)
+        reaching_rail = self.rolling_share[train] * traces["adhesion_demanded"]
+        available = np.minimum(traces["adhesion_available"], reaching_rail).sum(axis=1)
         used_m = float(np.sum(0.5 * (used[1:] + used[:-1]) * step_m))
         available_m = float(np.sum(0.5 * (available[1:] + available[:-1]) * step_m))
         return used_m / available_m if available_m > 0 else float("nan")
@@ -349,7 +372,6 @@ def wsp_test(
     dry = cfg.load("rail_conditions", DRY_CONDITION)
     valve_set = cfg.load("wsp_valves", valves)
     choice = resolve_wsp(wsp)
-    cylinder = cfg.load("pneumatics", TEST_ACTUATION)
 
     if seed is None:
         draw, resistance_A_N, normal = None, np.array([vehicle.running_resistance.A_N]), None
@@ -358,6 +380,7 @@ def wsp_test(
         draw, resistance_A_N = scatter.draw_for_samples(seed, np.zeros(1, dtype=np.int64))
         normal = rail_adhesion_normal(seed)
     application = [TrainApplication(load, TEST_BRAKE_MODE, TEST_ACTUATION, float(v0_kmh))]
+    command_time_s = application[0].command_time_s
     v0_mps = kmh_to_mps(v0_kmh)
     wheel_load_N = mass_kg * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
 
@@ -379,21 +402,22 @@ def wsp_test(
 
     adhesion = scattered_adhesion(vehicle, rail, normal)
     test, traces, table = stop(adhesion)
-    reference, _, _ = stop(scattered_adhesion(vehicle, dry, normal))
+    reference, dry_traces, _ = stop(scattered_adhesion(vehicle, dry, normal))
+    dry_trace = dry_traces.arrays()
 
     distance_m = float(test.summary.braking_distance_m[0])
     dry_distance_m = float(reference.summary.braking_distance_m[0])
     body_mass_kg = mass_kg - vehicle.n_axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
-    ideal_m = float(
-        adhesion_limited_distance_m(
-            table,
-            body_mass_kg,
-            mass_kg,
-            vehicle.running_resistance,
-            float(resistance_A_N[0]),
-            v0_mps,
-            cylinder.dead_time_s + cylinder.time_constant_s,
-        )
+    ideal_m = ideal_distance_m(
+        table,
+        body_mass_kg,
+        mass_kg,
+        vehicle.running_resistance,
+        float(resistance_A_N[0]),
+        v0_mps,
+        dry_trace["time_s"],
+        dry_trace["adhesion_demanded"].sum(axis=1) * 2.0 * wheel_load_N,
+        command_time_s,
     )
     longest_s, total_s = test.locked.longest_s[0], test.locked.total_s[0]
     slip_work_J = test.summary.slip_work_J[0]
@@ -418,8 +442,9 @@ def wsp_test(
         "stop_time_s": float(test.summary.braking_time_s[0]),
         "dry_stop_distance_m": dry_distance_m,
         "distance_extension_pct": 100.0 * (distance_m / dry_distance_m - 1.0),
-        "adhesion_limited_distance_m": ideal_m,
-        "distance_over_adhesion_limited": distance_m / ideal_m,
+        "ideal_distance_m": ideal_m,
+        "ideal_distance_definition": IDEAL_DISTANCE_DEFINITION,
+        "distance_over_ideal": distance_m / ideal_m,
         "adhesion_utilisation": traces.adhesion_utilisation(),
         "adhesion_utilisation_definition": ADHESION_UTILISATION_DEFINITION,
         "adhesion_utilisation_source": ADHESION_UTILISATION_SOURCE,
@@ -436,4 +461,9 @@ def wsp_test(
         "(brakegym.wheel_slide.LockedTimeObserver)",
         "rail": rail_name,
     }
-    return WspTestResult(report, traces.arrays())
+    # The traces from the brake command on, in time and position.
+    arrays = traces.arrays()
+    position_at_command_m = float(np.interp(command_time_s, arrays["time_s"], arrays["position_m"]))
+    arrays["time_s"] = arrays["time_s"] - command_time_s
+    arrays["position_m"] = arrays["position_m"] - position_at_command_m
+    return WspTestResult(report, arrays)

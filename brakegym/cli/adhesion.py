@@ -8,7 +8,7 @@
 JSON keys written by ``wsp-test`` (``--json``) are a public interface and stay stable:
 stop_distance_m, dry_stop_distance_m, distance_extension_pct, adhesion_utilisation,
 max_locked_time_s, slide_energy_MJ; and what was asked (vehicle, load, condition or line, wsp,
-valves, v0_kmh, seed), adhesion_limited_distance_m, adhesion_utilisation_definition and its source,
+valves, v0_kmh, seed), ideal_distance_m, adhesion_utilisation_definition and its source,
 each axle's locked times and slide energy (brakegym.wsp_test.wsp_test).
 """
 
@@ -47,7 +47,7 @@ def cmd_wsp_test(args: argparse.Namespace) -> int:
         ("stop distance", f"{report['stop_distance_m']:.1f} m"),
         ("dry stop distance", f"{report['dry_stop_distance_m']:.1f} m"),
         ("distance extension", f"{report['distance_extension_pct']:+.1f} %"),
-        ("adhesion-limited distance", f"{report['adhesion_limited_distance_m']:.1f} m"),
+        ("ideal distance (perfect WSP)", f"{report['ideal_distance_m']:.1f} m"),
         ("adhesion utilisation", f"{report['adhesion_utilisation']:.3f}"),
         ("longest locked axle", f"{report['max_locked_time_s']:.2f} s"),
         ("slide energy", f"{report['slide_energy_MJ']:.2f} MJ"),
