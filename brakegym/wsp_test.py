@@ -38,18 +38,20 @@ from .wheel_slide import (
 
 #: The rail the stopping distance is extended against.
 DRY_CONDITION = "dry"
-#: The WSP names ``--wsp`` takes besides a path: no WSP, and the reference controller's configs.
+#: The reference controller's configs by the WSP names ``--wsp`` takes for them.
 WSP_CONFIGS = {"reference": "wsp", "reference-true-speed": "wsp-true-speed"}
+#: The WSP name for no WSP (the valves at rest).
 NO_WSP = "none"
-#: The brake application of the test: the emergency brake through the EP brake control.
+#: The test's brake application, the emergency brake through the EP brake control.
 TEST_BRAKE_MODE = "emergency"
 TEST_ACTUATION = "EP"
 #: The scatter set-up the friction of a seeded test is drawn in (every disc on its own).
 DEFAULT_SCATTER_SETUP = "mcs-100"
-#: Speeds of the table of available adhesion, per m/s of the initial speed (a little above it).
+# The table of available adhesion: its speeds (0 to a little above v0) and the creeps searched.
 _PEAK_TABLE_POINTS = 241
 _PEAK_TABLE_CREEPS = 4001
 
+#: Where the adhesion utilisation's definition comes from, as the JSON says it.
 ADHESION_UTILISATION_SOURCE = (
     "Neither UIC 541-05 nor EN 15595 was at hand: their text is sold, not public, and no public page "
     "gave their formula. Public descriptions of both say a WSP is judged by how much of the available "
@@ -59,6 +61,7 @@ ADHESION_UTILISATION_SOURCE = (
     "railwaynews.net quotes an adhesion utilisation above 85 % as the pass mark). The definition "
     "below is brakegym's, written to match that description; it is not quoted from either standard."
 )
+#: The adhesion utilisation eta the test reports, as the JSON says it.
 ADHESION_UTILISATION_DEFINITION = (
     "eta = integral of sum_i F_i ds / integral of sum_i min(F_peak,i, (M / m) F_brake,i) ds over the "
     "stop: the distance-weighted mean of the adhesion used (creep force F_i of axle i over its wheel "
@@ -201,6 +204,7 @@ class PeakAdhesionTable:
         return np.take_along_axis(by_section, section, axis=0)
 
 
+#: The ideal (perfect-WSP) stop the test reports, as the JSON says it.
 IDEAL_DISTANCE_DEFINITION = (
     "the stop of a perfect WSP: every axle at every moment as much force as the rail and the brake "
     "allow, dv/dt = -min((m g mean_i peak_i(v, x) + F_R(v)) / M, (D(t) + F_R(v)) / m): the rail's "
@@ -340,6 +344,7 @@ class WspTestResult:
     traces: dict[str, np.ndarray]
 
     def as_json(self) -> dict[str, object]:
+        """The command's JSON: the stable keys, what was asked and the definitions used."""
         return self.report
 
 
