@@ -16,6 +16,7 @@ import numpy as np
 
 from . import config as cfg
 from .applications import CommandSchedule, StepObserver, StopSummary, TrainApplication, run_stops, train_conditions
+from .defaults import DEFAULT_WSP_CONTROL_STEP_S
 from .physics import FrictionDraw
 from .plants import brake_cylinder, nominal_draw, train_plant, valve_of_axle, wsp_valve
 from .simulator import CommandedPressure
@@ -24,8 +25,8 @@ from .simulator.state import SPEED
 from .simulator.wheelsets import AdhesionSimulator, WheelRailAdhesion
 from .units import kmh_to_mps
 
-#: WSP controllers run at 50-100 Hz.
-DEFAULT_CONTROL_STEP_S = 0.02
+#: WSP controllers run at 50-100 Hz (``brakegym.defaults.DEFAULT_WSP_CONTROL_STEP_S``).
+DEFAULT_CONTROL_STEP_S = DEFAULT_WSP_CONTROL_STEP_S
 #: A wheel turning slower than this share of the train speed counts as locked (sliding).
 LOCKED_SPEED_RATIO = 0.05
 #: Below this train speed no wheel counts as locked (the last metres of every stop).

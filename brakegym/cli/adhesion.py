@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..wheel_slide import DEFAULT_CONTROL_STEP_S
+from ..defaults import DEFAULT_WSP_CONTROL_STEP_S
 from .common import finite_positive, non_negative_int, write_json
 
 
@@ -92,8 +92,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--control-step",
         type=finite_positive("--control-step"),
-        default=DEFAULT_CONTROL_STEP_S,
-        help=f"WSP control and integration step in s (default {DEFAULT_CONTROL_STEP_S})",
+        default=DEFAULT_WSP_CONTROL_STEP_S,
+        help=f"WSP control and integration step in s (default {DEFAULT_WSP_CONTROL_STEP_S})",
     )
     p.add_argument("--json", help="write the results as JSON")
     p.add_argument("--figure", help="write speeds, pressures, creeps and adhesion over time (PNG)")
