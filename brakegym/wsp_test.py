@@ -378,10 +378,11 @@ def wsp_test(
     valve_set = cfg.load("wsp_valves", valves)
     choice = resolve_wsp(wsp)
 
+    scatter_setup = cfg.load("setups", setup)  # checked even when unused: a bad name is a mistake
     if seed is None:
         draw, resistance_A_N, normal = None, np.array([vehicle.running_resistance.A_N]), None
     else:
-        scatter = train_scatter(vehicle, cfg.load("setups", setup))
+        scatter = train_scatter(vehicle, scatter_setup)
         draw, resistance_A_N = scatter.draw_for_samples(seed, np.zeros(1, dtype=np.int64))
         normal = rail_adhesion_normal(seed)
     application = [TrainApplication(load, TEST_BRAKE_MODE, TEST_ACTUATION, float(v0_kmh))]

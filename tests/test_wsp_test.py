@@ -179,6 +179,7 @@ def test_command_writes_json_and_figure(tmp_path, capsys):
         (["--load", "empty", "--condition", "icy"], "known: dry, low, wet"),
         (["--load", "empty", "--line", "nowhere"], "nowhere"),
         (["--load", "empty", "--valves", "wheel"], "wheel"),
+        (["--load", "empty", "--setup", "mcs-50"], "known: ds, mcs-100"),
     ],
 )
 def test_bad_input_names_what_and_lists_the_known(arguments, message, capsys):
