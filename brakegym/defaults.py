@@ -19,3 +19,6 @@ DEFAULT_TAIL_CHUNK_STOPS = 250
 # The tail estimators of brakegym tail and brakegym.safety.tail.tail (docs/tails.md), named here so
 # that the command line offers them without importing the estimators.
 TAIL_METHODS = ("subset", "is", "brute")
+
+# The step of a WSP controller and of the stops it commands: WSP controllers run at 50-100 Hz.
+DEFAULT_WSP_CONTROL_STEP_S = 0.02

@@ -224,6 +224,8 @@ def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
 # campaign's seed (reliability.streams.derived_seed), so that adding a kind of draw leaves the others.
 FRICTION_STREAM = 0
 RUNNING_RESISTANCE_STREAM = 1
+# The rail's adhesion (mu_0 of its creep-force law) of a seeded WSP test (brakegym.wsp_test).
+RAIL_ADHESION_STREAM = 2
 
 
 def _campaign_normals(seed: int, stream: int, sample_index: np.ndarray, dims: int) -> np.ndarray:
