@@ -243,8 +243,10 @@ def _parameters(effect_id: str, coefficients: dict[str, float], recordings: Sequ
 
 
 def _mean_friction(coefficients: dict[str, float]) -> float:
-    """The mean of the per-recording friction terms' coefficients (a common friction level)."""
-    return float(np.mean([v for t, v in coefficients.items() if t.startswith(FRICTION_PREFIX)]))
+    """The mean of the per-recording friction terms' coefficients (a common friction level; 0
+    without such terms)."""
+    values = [v for t, v in coefficients.items() if t.startswith(FRICTION_PREFIX)]
+    return float(np.mean(values)) if values else 0.0
 
 
 def sindy_verdict(regression: Regression, recordings: Sequence[Recording]) -> dict[str, Any]:
