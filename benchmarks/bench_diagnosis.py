@@ -10,7 +10,12 @@ Pass rules, fixed before running:
   what was selected;
 - a set with two effects is a hit when at least one of them is selected (both: full hit, counted
   apart);
-- an effect-free set is a hit when nothing is selected (its misses are the false positives).
+- an effect-free set is a hit when nothing is selected (its misses are the false positives);
+- a set with effects outside the library and none of the library (a model form's, e.g.
+  ``real_train``'s contact-pressure friction and ED brake; kind ``unexplained``) is a hit when
+  nothing is selected: the right verdict is "unexplained", with no confident wrong name. Whether
+  the verdict also says the model misses the data (the report's ``unexplained``) is counted apart.
+  A set with library effects as well is judged by those.
 
 The rules are applied twice: to the effects drawn, and to the effects expressed in the data (the
 key's ``expected_selected``: an effect is expressed when it moves some sample of some channel by at
@@ -20,6 +25,17 @@ before the key recorded expression get it by synthesizing their set again (same 
 
 Parameter recovery, on sets where a true effect was selected: the fitted value against the
 truth, and whether the truth lies inside the reported 95 % interval.
+
+The summary adds, per method: pairs both ways (both named, at least one), the confusion matrix of
+the effects drawn against the verdict (with ``nothing`` and ``unexplained``), the false-naming
+rate (sets where an effect not drawn was selected, over all sets and per effect) and the coverage
+of the nominal 95 % intervals per parameter on the sets where exactly the effects drawn were
+selected; ``--summary-json`` writes those numbers.
+
+``--measurement-chain NAME`` and ``--model-form NAME`` synthesize the sets as ``brakegym synth``
+does with those options (rows record both; ``--rerun`` uses a row's own). ``--method sindy``
+judges the same sets by the sparse-regression baseline (:mod:`brakegym.diagnosis.baseline`, the
+``baseline`` extra); a row's ``seconds`` is the method's time alone, without the synthesis.
 
 Usage: ``python benchmarks/bench_diagnosis.py --sets 20 --seed 1 [--recordings 8] [--json out.json]``.
 With ``--json`` each set's row is written as soon as it is done; an interrupted run (Ctrl-C)

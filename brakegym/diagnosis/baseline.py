@@ -101,9 +101,9 @@ TERMS = tuple(TERM_EFFECTS)
 BLOCKS = ("kinematic", "decel", "temperature")
 FRICTION_PREFIX = "brake@"
 HEAT_PREFIX = "heat@"
-#: Rows where the measured or the replayed speed is below this are left out (m/s): near the stop
-#: the two stand still at different instants, and the deceleration residual there is a step of
-#: the full deceleration that no term describes.
+#: Below this speed in m/s, measured or replayed, rows are left out of the motion blocks, since
+#: near the stop the two stand still at different instants and the deceleration residual there is
+#: a step of the full deceleration that no term describes.
 MIN_SPEED_MPS = 1.0
 
 EXTRA_HINT = "the SINDy baseline needs PySINDy: pip install 'brakegym[baseline]'"
@@ -130,7 +130,7 @@ def stlsq(features: np.ndarray, target: np.ndarray, threshold: float, alpha: flo
 @dataclass
 class Regression:
     """The stacked rows of a set: ``features`` (rows, terms) and ``target`` (rows), both in noise
-    sigmas of their block, each row's block, and the terms (:data:`TERMS`, then one friction
+    sigmas of their block, each row's block, and the terms (``TERMS``, then one friction
     term per recording)."""
 
     terms: list[str]
