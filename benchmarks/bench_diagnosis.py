@@ -326,20 +326,23 @@ def _percent(part: int, whole: int) -> str:
 CONFUSION_ORDER = (NOTHING, UNEXPLAINED, *EFFECTS)
 
 
+def confusion_legend() -> str:
+    """The confusion tables' column numbers."""
+    return "  columns: " + ", ".join(f"{i}={label}" for i, label in enumerate(CONFUSION_ORDER))
+
+
 def confusion_table(numbers: dict[str, Any]) -> list[str]:
     """The confusion matrix as text: effects drawn (rows, with the number of sets) x verdicts
-    (columns, numbered as in the legend). A set with two effects drawn or selected counts in each
-    of their cells."""
-    labels = [label for label in CONFUSION_ORDER]
-    lines = ["  columns: " + ", ".join(f"{i}={label}" for i, label in enumerate(labels))]
-    lines.append(f"  {'drawn':24s} {'sets':>4s} " + " ".join(f"{i:>3d}" for i in range(len(labels))))
-    for drawn in labels:
+    (columns, numbered as in :func:`confusion_legend`). A set with two effects drawn or selected
+    counts in each of their cells."""
+    lines = [f"  {'drawn':24s} {'sets':>4s} " + " ".join(f"{i:>3d}" for i in range(len(CONFUSION_ORDER)))]
+    for drawn in CONFUSION_ORDER:
         if drawn not in numbers["confusion"]:
             continue
         cells = numbers["confusion"][drawn]
         lines.append(
             f"  {drawn:24s} {numbers['confusion_row_sets'][drawn]:4d} "
-            + " ".join(f"{cells.get(label, 0) or '.':>3}" for label in labels)
+            + " ".join(f"{cells.get(label, 0) or '.':>3}" for label in CONFUSION_ORDER)
         )
     return lines
 
@@ -360,7 +363,7 @@ def print_metrics(numbers: dict[str, Any]) -> None:
             f"{_percent(outside['said_unexplained'], outside['sets'])}"
         )
     print("\nconfusion matrix (effects drawn x verdict):")
-    for line in confusion_table(numbers):
+    for line in [confusion_legend(), *confusion_table(numbers)]:
         print(line)
     false = numbers["false_naming"]
     print(
@@ -391,6 +394,7 @@ def print_side_by_side(by_method: dict[str, dict[str, Any]]) -> None:
     tables = {method: confusion_table(numbers) for method, numbers in by_method.items()}
     width = max(len(line) for lines in tables.values() for line in lines)
     print("\nconfusion matrices side by side: " + " | ".join(tables))
+    print(confusion_legend())
     height = max(len(lines) for lines in tables.values())
     for i in range(height):
         print(" | ".join((lines[i] if i < len(lines) else "").ljust(width) for lines in tables.values()))

@@ -205,3 +205,19 @@ def test_sindy_verdict_names_the_effects_of_its_terms():
     assert "brake_hot" not in verdict["kept_terms"]
     assert not verdict["unexplained"]
     assert verdict["residual_rms_over_noise_after"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_rows_written_before_the_new_keys_count_as_the_diagnosis(bench, rows):
+    """Rows of earlier runs have no method, chain, model form, out-of-library list or unexplained
+    flag: they are the diagnosis's, on clean sets, and summarize as before."""
+    old = [
+        {k: v for k, v in r.items() if k not in ("method", "measurement_chain", "model_form", "unexplained")}
+        for r in rows[:5]
+    ]
+    for r in old:
+        del r["out_of_library"]
+    numbers = bench.metrics(old)
+    assert bench.row_method(old[0]) == "brakegym"
+    assert numbers["confusion"]["nothing"] == {"friction_level": 1, "nothing": 1}
+    assert "unexplained" not in numbers["confusion"]
+    assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2}
