@@ -15,5 +15,10 @@ DEFAULT_CHUNK_STOPS = 1000
 # chunk because an estimator's batches are small (a subset simulation's step evaluates one row
 # per chain, a few hundred).
 DEFAULT_TAIL_CHUNK_STOPS = 250
-# The step of stops with wheel-slide protection, in s (WSP controllers run at 50-100 Hz).
-DEFAULT_CONTROL_STEP_S = 0.02
+
+# The tail estimators of brakegym tail and brakegym.safety.tail.tail (docs/tails.md), named here so
+# that the command line offers them without importing the estimators.
+TAIL_METHODS = ("subset", "is", "brute")
+
+# The step of a WSP controller and of the stops it commands: WSP controllers run at 50-100 Hz.
+DEFAULT_WSP_CONTROL_STEP_S = 0.02

@@ -162,7 +162,7 @@ def rail_friction_factor_for_samples(
     (:func:`brakegym.physics.adhesion.static_friction_factor`, lognormal, mean 1), each stop's from
     one normal of its own counter-based stream: the same for a stop whatever the others drawn with
     it, and the friction and running-resistance draws unchanged."""
-    normals = _campaign_normals(seed, RAIL_FRICTION_STREAM, sample_index, 1)[:, 0]
+    normals = _campaign_normals(seed, RAIL_ADHESION_STREAM, sample_index, 1)[:, 0]
     return static_friction_factor(rail_static_friction_relative_sigma(rail), normals)
 
 
@@ -250,7 +250,9 @@ def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
 # campaign's seed (reliability.streams.derived_seed), so that adding a kind of draw leaves the others.
 FRICTION_STREAM = 0
 RUNNING_RESISTANCE_STREAM = 1
-RAIL_FRICTION_STREAM = 2
+# The rail's adhesion (mu_0 of its creep-force law): of a seeded WSP test (brakegym.wsp_test),
+# of each stop of a campaign on a rail (rail_friction_factor_for_samples).
+RAIL_ADHESION_STREAM = 2
 
 
 def _campaign_normals(seed: int, stream: int, sample_index: np.ndarray, dims: int) -> np.ndarray:

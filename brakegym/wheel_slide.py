@@ -15,8 +15,8 @@ from typing import Protocol
 import numpy as np
 
 from . import config as cfg
-from .applications import CommandSchedule, StopSummary, TrainApplication, run_stops, train_conditions
-from .defaults import DEFAULT_CONTROL_STEP_S
+from .applications import CommandSchedule, StepObserver, StopSummary, TrainApplication, run_stops, train_conditions
+from .defaults import DEFAULT_WSP_CONTROL_STEP_S
 from .physics import FrictionDraw
 from .plants import brake_cylinder, nominal_draw, train_plant, valve_of_axle, wsp_valve
 from .simulator import CommandedPressure
@@ -25,6 +25,8 @@ from .simulator.state import SPEED
 from .simulator.wheelsets import AdhesionSimulator, WheelRailAdhesion
 from .units import kmh_to_mps
 
+#: WSP controllers run at 50-100 Hz (``brakegym.defaults.DEFAULT_WSP_CONTROL_STEP_S``).
+DEFAULT_CONTROL_STEP_S = DEFAULT_WSP_CONTROL_STEP_S
 #: A wheel turning slower than this share of the train speed counts as locked (sliding).
 LOCKED_SPEED_RATIO = 0.05
 #: Below this train speed no wheel counts as locked (the last metres of every stop).
@@ -99,6 +101,7 @@ def wsp_train_stops(
     control_step_s: float = DEFAULT_CONTROL_STEP_S,
     draw: FrictionDraw | None = None,
     running_resistance_A_N: np.ndarray | None = None,
+    observers: Sequence[StepObserver] = (),
 ) -> WspStops:
     """Stops of ``vehicle`` as :func:`~brakegym.applications.train_stops` runs them, on the rail
     of ``adhesion``, through the WSP ``valves``, commanded by the controller
@@ -106,13 +109,13 @@ def wsp_train_stops(
     ``functools.partial(brakegym.agents.wsp.WspController, config)``; None: no WSP, the valves at
     rest).
 
-    ``draw`` and ``running_resistance_A_N``: each stop's disc friction and running resistance
-    (a campaign's scatter; default nominal). Each stop's own rail: ``adhesion``'s
-    ``static_friction_factor``."""
+    ``draw`` and ``running_resistance_A_N`` (B,): each stop's disc friction and running resistance
+    A (e.g. from :meth:`brakegym.plants.TrainScatter.draw_for_samples`); None: nominal.
+    ``observers``: more :class:`~brakegym.applications.StepObserver` s, updated after each step
+    after the locked-time observer (e.g. one that records traces). Each stop's own rail:
+    ``adhesion``'s ``static_friction_factor``."""
     plant = train_plant(vehicle)
     n = len(applications)
-    if running_resistance_A_N is None:
-        running_resistance_A_N = np.full(n, vehicle.running_resistance.A_N)
     cylinders = [brake_cylinder(cfg.load("pneumatics", app.actuation)) for app in applications]
     pressures = np.array([vehicle.brake_pressure_bar(app.brake_mode, app.load) for app in applications])
     command = np.repeat(pressures[:, None], plant.n_axles, axis=1)
@@ -120,8 +123,10 @@ def wsp_train_stops(
         vehicle,
         mass_kg=np.array([vehicle.mass_kg(app.load) for app in applications]),
         initial_speed_mps=np.array([kmh_to_mps(app.initial_speed_kmh) for app in applications]),
-        draw=draw or nominal_draw(cfg.load("materials", vehicle.material), n, plant.disc_shape),
-        running_resistance_A_N=np.asarray(running_resistance_A_N, dtype=float),
+        draw=nominal_draw(cfg.load("materials", vehicle.material), n, plant.disc_shape) if draw is None else draw,
+        running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N)
+        if running_resistance_A_N is None
+        else np.asarray(running_resistance_A_N, dtype=float),
     )
     axles = valve_of_axle(vehicle, valves)
     pressure = ValvedPressure(CommandedPressure(cylinders, plant.n_axles, control_step_s), wsp_valve(valves), axles)
@@ -132,6 +137,9 @@ def wsp_train_stops(
     controller = None if make_controller is None else make_controller(axles, control_step_s)
     locked = LockedTimeObserver(n, plant.n_axles)
     summary = run_stops(
-        sim, plant.caliper.clamp_force_N(command), _WspCommand(schedule, pressure, controller), observers=[locked]
+        sim,
+        plant.caliper.clamp_force_N(command),
+        _WspCommand(schedule, pressure, controller),
+        observers=[locked, *observers],
     )
     return WspStops(summary, locked)

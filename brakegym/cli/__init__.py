@@ -7,12 +7,13 @@
     brakegym trends    the paper's trends recomputed
     brakegym tail      the braking distance exceeded with a small probability (safety cases)
     brakegym kdry      the ETCS emergency brake model: Kdry_rst per speed band and confidence level
+    brakegym wsp-test  the WSP test of UIC 541-05 / EN 15595: a low-adhesion stop with WSP against the dry one
     brakegym train | evaluate | stress   controllers on the environments
     brakegym synth     synthetic recordings with concealed effects
     brakegym diagnose  locate and name the missing physics in recordings
     brakegym identify  fit friction, thermal and scatter parameters to data
 
-One module per group of subcommands (:mod:`.simulation`, :mod:`.safety`, :mod:`.controllers`,
+One module per group of subcommands (:mod:`.simulation`, :mod:`.safety`, :mod:`.adhesion`, :mod:`.controllers`,
 :mod:`.recordings`, :mod:`.identify`), each with an ``add_commands(subparsers)``; what they share is :mod:`.common`.
 ``--config-path DIR`` (repeatable) puts a folder of the user's own configs on the search path
 before ``$BRAKEGYM_CONFIG_PATH`` and the shipped configs. JSON keys the commands write are a public
@@ -30,10 +31,10 @@ from collections.abc import Sequence
 from .. import __version__
 from .. import config as cfg
 from ..execution.base import TaskFailed
-from . import controllers, identify, recordings, safety, simulation
+from . import adhesion, controllers, identify, recordings, safety, simulation
 from .common import EXIT_USAGE, UsageError
 
-COMMAND_GROUPS = (simulation, safety, controllers, recordings, identify)
+COMMAND_GROUPS = (simulation, safety, adhesion, controllers, recordings, identify)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -16,7 +16,7 @@ import argparse
 import math
 
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS
+from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS, TAIL_METHODS
 from .common import (
     UsageError,
     add_execution_options,
@@ -27,8 +27,6 @@ from .common import (
     progress,
     write_json,
 )
-
-METHODS = ("subset", "is", "brute")
 
 
 def _probability(text: str) -> float:
@@ -232,7 +230,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     target = p.add_mutually_exclusive_group(required=True)
     target.add_argument("--probability", type=_probability, help="exceedance probability, e.g. 1e-9")
     target.add_argument("--distance", type=finite_positive("--distance"), help="braking distance in m")
-    p.add_argument("--method", choices=METHODS, default="subset", help="estimator (default subset)")
+    p.add_argument("--method", choices=TAIL_METHODS, default="subset", help="estimator (default subset)")
     p.add_argument("--seed", type=non_negative_int("--seed"), default=0, help="random seed (default 0)")
     p.add_argument("--n-per-level", type=positive_int("--n-per-level"), help="samples per level (subset, is)")
     p.add_argument("--samples", type=positive_int("--samples"), help="brute force's sample size")

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
-from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_CONTROL_STEP_S, DEFAULT_STEP_S
+from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_STEP_S, DEFAULT_WSP_CONTROL_STEP_S
 from .common import (
     UsageError,
     add_execution_options,
@@ -116,7 +116,7 @@ def cmd_mcs(args: argparse.Namespace) -> int:
     if not on_rail and (args.wsp is not None or args.wsp_valves is not None):
         raise UsageError("--wsp and --wsp-valves need a rail: --condition or --line")
     if args.step is None:
-        args.step = DEFAULT_CONTROL_STEP_S if on_rail else DEFAULT_STEP_S
+        args.step = DEFAULT_WSP_CONTROL_STEP_S if on_rail else DEFAULT_STEP_S
     if args.campaign == "dyno" and args.chunk_size is not None:
         raise UsageError(
             "--chunk-size is for the field campaign; the dynamometer campaign runs one chunk per load case"
@@ -425,7 +425,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         type=finite_positive("--step"),
         default=None,
         help=f"integration step in s (default {DEFAULT_STEP_S}; on a rail the WSP's control step, "
-        f"{DEFAULT_CONTROL_STEP_S})",
+        f"{DEFAULT_WSP_CONTROL_STEP_S})",
     )
     rail = p.add_argument_group("on a rail (field campaign; wheel-rail adhesion, docs/adhesion.md)")
     where = rail.add_mutually_exclusive_group()

@@ -19,13 +19,12 @@ from typing import Any
 import numpy as np
 
 from .. import config as cfg
-from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS
+from ..defaults import DEFAULT_STEP_S, DEFAULT_TAIL_CHUNK_STOPS, TAIL_METHODS
 from ..execution import Executor, RowsOnExecutor
 from ..reliability import TailEstimate, brute_force, mixture_tail
 from .conventional import ConventionalStop, conventional_stop
 from .model import BrakingModel
 
-METHODS = ("subset", "is", "brute")
 # Brute force's default sample: this many expected exceedances of the asked probability.
 BRUTE_FORCE_EXCEEDANCES = 100
 # The most stops brute force runs unless told otherwise (about an hour on two cores from 160 km/h).
@@ -87,8 +86,8 @@ def braking_distance_tail(
     ``probability``); ``settings`` go to the estimator (``n_per_level``, ``batch_size``, ...).
     The stops run in this process, or on ``executor`` in tasks of ``chunk_stops`` stops, with the
     same result bit for bit."""
-    if method not in METHODS:
-        raise ValueError(f"method {method!r}: choose one of {list(METHODS)}")
+    if method not in TAIL_METHODS:
+        raise ValueError(f"method {method!r}: choose one of {list(TAIL_METHODS)}")
     if (probability is None) == (distance_m is None):
         raise ValueError("give exactly one of probability and distance_m")
     if probability is not None and not 0 < probability < 1:
