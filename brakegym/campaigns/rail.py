@@ -37,7 +37,7 @@ from .chunks import Chunk, even_chunks, run_chunks
 from .field import STOP_COLUMNS, STOPS, FieldCampaignResult, field_applications, field_manifest
 from .store import CampaignStore
 
-# The columns a rail campaign's stops add to the field campaign's.
+#: The columns a rail campaign's stops add to the field campaign's (one row per stop).
 RAIL_STOP_COLUMNS = (
     "rail_friction_factor",  # the stop's rail mu_0 over the condition's (on a line: every section's)
     "rail_static_friction",  # the stop's mu_0 (on a line: of the section with the lowest peak adhesion)

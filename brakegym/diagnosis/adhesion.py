@@ -10,7 +10,7 @@ diagnosis of stops braked through one fits that share of the peak.
 
 :func:`read_adhesion` names the rail condition (``configs/rail_conditions/``) whose peak at the
 vehicle's contact lies nearest the fitted adhesion, and the mu_0 that, with that condition's other
-Polach parameters, gives the fitted adhesion as its peak (:meth:`PolachLaw.with_peak_adhesion`).
+Polach parameters, gives the fitted adhesion as its peak (:meth:`~brakegym.physics.PolachLaw.with_peak_adhesion`).
 The cap does not depend on speed; Polach's peak falls a little with speed (the friction falls with
 the slip speed), so the reading is given at a speed, 30 m/s by default (the configs' own
 ``peak_adhesion``'s).
