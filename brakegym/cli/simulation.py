@@ -296,7 +296,7 @@ def _rail_field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor)
         "applications": result.n_stops,
         "rail": rail.name,
         "rail_kind": "condition" if args.condition else "line",
-        "wsp": wsp_name if wsp is None else wsp.name,
+        "wsp": wsp_name if wsp is None or wsp_name == "reference" else wsp.name,
         "wsp_valves": valves.name,
         "rail_peak_adhesion_mean": float(rows["rail_peak_adhesion"].mean()),
         "slide_energy_MJ_mean": float(rows["slide_energy_MJ"].mean()),
