@@ -5,6 +5,7 @@ adhesion."""
 
 import dataclasses
 import functools
+import json
 
 import numpy as np
 import pandas as pd
@@ -268,3 +269,20 @@ def test_adhesion_limit_is_the_rails_peak_times_the_wsps_utilisation(wsp_config)
         f"stop peak {stop_peak:.4f} ({peaks.min():.4f}-{peaks.max():.4f}), ideal {ideal_m:.1f} m, cap {ideal_cap:.4f}"
     )
     print(f"WSP {wsp_m:.1f} m, cap {wsp_cap:.4f}, utilisation {utilisation:.3f}")
+
+
+def test_cli_campaign_on_a_rail_writes_its_keys(tmp_path, capsys):
+    """``brakegym mcs --condition low`` (the reference WSP by default): the field campaign's JSON
+    keys and the rail's, the step the WSP's; the rows' columns in the CSV."""
+    out, csv = tmp_path / "low.json", tmp_path / "low.csv"
+    args = ["mcs", "--campaign", "field", "--condition", "low", "--repetitions", "1", "--json", str(out)]
+    assert main([*args, "--csv", str(csv)]) == 0
+    data = json.loads(out.read_text())
+    assert {"campaign", "setup", "seed", "step_s", "applications", "field_applications"} <= set(data)
+    assert data["rail"] == "low" and data["rail_kind"] == "condition"
+    assert data["wsp"] == "reference" and data["wsp_valves"] == "axle" and data["step_s"] == 0.02
+    assert data["applications"] == 88 and data["stops_with_locked_axle"] == 0
+    assert 0.06 < data["rail_peak_adhesion_mean"] < 0.08
+    rows = pd.read_csv(csv)
+    assert set(RAIL_STOP_COLUMNS) <= set(rows.columns) and len(rows) == 88
+    assert "on low, WSP reference" in capsys.readouterr().out
