@@ -11,7 +11,10 @@ Each control step, for each axle i with wheel speed u_i (m/s at the tread):
   a_i = (u_i(t - dt) - u_i(t)) / dt;
 - dump if s_i > ``dump_slip`` or a_i > ``dump_deceleration_mps2``; else hold if s_i > ``hold_slip``,
   a_i > ``hold_deceleration_mps2`` or the wheel spins back up faster than ``reacceleration_mps2``;
-  else apply (the valve at rest: the cylinder refills to the brake control's pressure).
+  else apply (the valve at rest: the cylinder refills to the brake control's pressure);
+- below a reference speed of ``inactive_below_mps`` every valve is at rest: near standstill the
+  slip criterion (creep over at least ``min_reference_speed_mps``) would otherwise cycle the valves
+  and leave the train creeping at a few mm/s with its wheels turning.
 
 A valve on a bogie takes the strictest command of its axles (dump before hold before apply).
 Vectorised over a batch of trains: (B, A) wheel speeds in, (B, valves) commands out.
@@ -43,6 +46,9 @@ class WspControllerConfig(cfg.StrictModel):
     dump_deceleration_mps2: float = Field(gt=0)
     hold_deceleration_mps2: float = Field(gt=0)
     reacceleration_mps2: float = Field(gt=0)
+    # Below this reference speed the valves stay at rest, so that the brake holds the train to
+    # standstill (0: active to the end).
+    inactive_below_mps: float = Field(default=0.0, ge=0)
 
 
 def load_wsp_config(name_or_path: str | Path = "wsp") -> WspControllerConfig:
@@ -103,6 +109,7 @@ class WspController:
             | (-deceleration > config.reacceleration_mps2)
         )
         per_axle = np.where(dump, VALVE_DUMP, np.where(hold, VALVE_HOLD, VALVE_APPLY))
+        per_axle = np.where(reference < config.inactive_below_mps, VALVE_APPLY, per_axle)
         per_valve = np.full((len(wheels), self.n_valves), VALVE_APPLY, dtype=np.int64)
         np.minimum.at(per_valve.T, self.valve_of_axle, per_axle.T)
         return per_valve

@@ -30,6 +30,7 @@ from .physics import (
     draw_running_resistance,
     friction_from_normals,
     running_resistance_from_normals,
+    static_friction_factor,
 )
 from .simulator import Plant
 from .simulator.wheelsets import WheelRailAdhesion
@@ -140,6 +141,31 @@ def rail_sections(line: cfg.Line) -> RailSections:
     return RailSections(starts_m=tuple(section.start_m for section in line.sections), laws=tuple(laws))
 
 
+def rail_conditions_of(rail: cfg.RailCondition | cfg.Line) -> list[cfg.RailCondition]:
+    """The rail conditions of a rail: itself, or each section's of a line (in section order)."""
+    if isinstance(rail, cfg.RailCondition):
+        return [rail]
+    return [cfg.load("rail_conditions", section.rail_condition) for section in rail.sections]
+
+
+def rail_static_friction_relative_sigma(rail: cfg.RailCondition | cfg.Line) -> float:
+    """The relative scatter of mu_0 per stop of a rail: its condition's, or on a line the largest
+    of its sections' (one factor scales every section of a stop's line: the same weather along
+    it; the widest scatter is the cautious choice)."""
+    return max(condition.static_friction_relative_sigma for condition in rail_conditions_of(rail))
+
+
+def rail_friction_factor_for_samples(
+    rail: cfg.RailCondition | cfg.Line, seed: int, sample_index: np.ndarray
+) -> np.ndarray:
+    """The factor on the rail's mu_0 of the stops ``sample_index`` of a campaign seeded ``seed``
+    (:func:`brakegym.physics.adhesion.static_friction_factor`, lognormal, mean 1), each stop's from
+    one normal of its own counter-based stream: the same for a stop whatever the others drawn with
+    it, and the friction and running-resistance draws unchanged."""
+    normals = _campaign_normals(seed, RAIL_ADHESION_STREAM, sample_index, 1)[:, 0]
+    return static_friction_factor(rail_static_friction_relative_sigma(rail), normals)
+
+
 def wheel_rail_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line) -> WheelRailAdhesion:
     """The adhesion option of ``vehicle`` on a rail in one condition or on a line of sections
     (docs/adhesion.md)."""
@@ -224,7 +250,8 @@ def scatter_partition(setup: cfg.ScatterSetup) -> ScatterPartition:
 # campaign's seed (reliability.streams.derived_seed), so that adding a kind of draw leaves the others.
 FRICTION_STREAM = 0
 RUNNING_RESISTANCE_STREAM = 1
-# The rail's adhesion (mu_0 of its creep-force law) of a seeded WSP test (brakegym.wsp_test).
+# The rail's adhesion (mu_0 of its creep-force law): of a seeded WSP test (brakegym.wsp_test),
+# of each stop of a campaign on a rail (rail_friction_factor_for_samples).
 RAIL_ADHESION_STREAM = 2
 
 

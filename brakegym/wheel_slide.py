@@ -112,7 +112,8 @@ def wsp_train_stops(
     ``draw`` and ``running_resistance_A_N`` (B,): each stop's disc friction and running resistance
     A (e.g. from :meth:`brakegym.plants.TrainScatter.draw_for_samples`); None: nominal.
     ``observers``: more :class:`~brakegym.applications.StepObserver` s, updated after each step
-    after the locked-time observer (e.g. one that records traces)."""
+    after the locked-time observer (e.g. one that records traces). Each stop's own rail:
+    ``adhesion``'s ``static_friction_factor``."""
     plant = train_plant(vehicle)
     n = len(applications)
     cylinders = [brake_cylinder(cfg.load("pneumatics", app.actuation)) for app in applications]

@@ -413,13 +413,20 @@ def _assert_same_states(compiled: AdhesionSimulator, reference: NumpyAdhesionSim
     np.testing.assert_array_equal(compiled.moving, reference.moving)
 
 
-@pytest.mark.parametrize("rail", ["dry", "low", "low_patch_with_axle_offsets"], ids=["dry", "low", "patch-offsets"])
+@pytest.mark.parametrize(
+    "rail",
+    ["dry", "low", "low_patch_with_axle_offsets", "wet_scattered_per_train"],
+    ids=["dry", "low", "patch-offsets", "wet-per-train"],
+)
 def test_compiled_adhesion_step_is_the_numpy_reference(rail):
     """Trains stopping, standing and cooling in one batch (not held), wheels rolling, locking and
-    spinning up again on a patch with the axles spread along the train: the compiled kernel and
-    the numpy scheme agree to round-off at every step."""
+    spinning up again on a patch with the axles spread along the train, and each train on its own
+    rail (mu_0 scaled per train, from a wet rail that holds to a low one that locks): the compiled
+    kernel and the numpy scheme agree to round-off at every step."""
     vehicle = cfg.load("vehicles", "emu_8axle")
-    if rail == "low_patch_with_axle_offsets":
+    if rail == "wet_scattered_per_train":
+        adhesion = dataclasses.replace(_adhesion("wet"), static_friction_factor=(1.3, 1.0, 0.5, 0.2, 0.25))
+    elif rail == "low_patch_with_axle_offsets":
         adhesion = dataclasses.replace(
             wheel_rail_adhesion(vehicle, cfg.load("lines", "low_patch")),
             axle_offsets_m=tuple(np.linspace(0.0, 95.0, vehicle.n_axles)),

@@ -86,6 +86,11 @@ def test_names_an_adhesion_limit_and_recovers_it(tmp_path):
     assert report["parameters"]["adhesion"] == pytest.approx(adhesion, abs=0.002)
     low, high = next(c for c in report["candidates"] if c["effects"] == ["adhesion_limit"])["ci95"]["adhesion"]
     assert low - 0.001 <= adhesion <= high + 0.001
+    # Read as a rail (docs/adhesion.md): the WSP-test rail, with a mu_0 near its own.
+    rail = report["adhesion_limit_rail"]
+    assert rail["peak_adhesion"] == report["parameters"]["adhesion"]
+    assert rail["nearest_rail_condition"] == "low"
+    assert rail["polach_static_friction"] == pytest.approx(0.063 * adhesion / 0.07, rel=0.1)
 
 
 def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path):

@@ -9,15 +9,18 @@ campaign bit for bit whatever the executor, the number of workers or the chunk s
 rows stay in memory, or go to Parquet files in a folder, resumable after an interruption.
 
 - :mod:`.dyno`: the dynamometer campaign; :mod:`.field`: train stops and the field campaign;
+  :mod:`.rail`: the field campaign on a rail condition, with adhesion and WSP;
 - :mod:`.chunks`: chunks, running them, their rows; :mod:`.store`: a campaign's folder;
 - :mod:`.trends`: the paper's trends recomputed; :mod:`.figures`: figures after the paper's.
 """
 
 from .dyno import DynoCampaignResult, dyno_applications, dyno_campaign
 from .field import FieldCampaignResult, field_applications, field_campaign, train_monte_carlo
+from .rail import RAIL_STOP_COLUMNS, rail_field_campaign
 from .store import CampaignFolderError
 
 __all__ = [
+    "RAIL_STOP_COLUMNS",
     "CampaignFolderError",
     "DynoCampaignResult",
     "FieldCampaignResult",
@@ -25,5 +28,6 @@ __all__ = [
     "dyno_campaign",
     "field_applications",
     "field_campaign",
+    "rail_field_campaign",
     "train_monte_carlo",
 ]

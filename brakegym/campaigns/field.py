@@ -185,6 +185,8 @@ class FieldCampaignResult:
         table = {name: described[application, k] for k, name in enumerate(_DESCRIPTION)}
         table["v0_kmh"] = table["v0_kmh"].astype(float)
         table.update({name: columns[name] for name in STOP_COLUMNS[2:]})
+        # A campaign's own columns after the field campaign's (the rail campaign's, .rail).
+        table.update({name: values for name, values in columns.items() if name not in STOP_COLUMNS})
         return pd.DataFrame(table)
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
-from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_STEP_S
+from ..defaults import DEFAULT_CHUNK_STOPS, DEFAULT_STEP_S, DEFAULT_WSP_CONTROL_STEP_S
 from .common import (
     UsageError,
     add_execution_options,
@@ -29,6 +29,9 @@ from .common import (
     progress,
     write_json,
 )
+
+#: A stop counts as one with a locked axle in the summary when an axle stayed locked this long, s.
+LOCKED_STOP_S = 0.5
 
 # ------------------------------------------------------------------------------------------------
 
@@ -107,6 +110,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_mcs(args: argparse.Namespace) -> int:
     setup = cfg.load("setups", args.setup)
+    on_rail = args.condition is not None or args.line is not None
+    if args.campaign == "dyno" and on_rail:
+        raise UsageError("--condition and --line are for the field campaign (train stops on a rail)")
+    if not on_rail and (args.wsp is not None or args.wsp_valves is not None):
+        raise UsageError("--wsp and --wsp-valves need a rail: --condition or --line")
+    if args.step is None:
+        args.step = DEFAULT_WSP_CONTROL_STEP_S if on_rail else DEFAULT_STEP_S
     if args.campaign == "dyno" and args.chunk_size is not None:
         raise UsageError(
             "--chunk-size is for the field campaign; the dynamometer campaign runs one chunk per load case"
@@ -116,6 +126,8 @@ def cmd_mcs(args: argparse.Namespace) -> int:
     with executor_from_arguments(args) as executor:
         if args.campaign == "dyno":
             payload = _dyno_mcs(args, setup, executor)
+        elif on_rail:
+            payload = _rail_field_mcs(args, setup, executor)
         else:
             payload = _field_mcs(args, setup, executor)
     write_json(args.json, payload)
@@ -210,6 +222,86 @@ def _field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> d
         "seed": args.seed,
         "step_s": args.step,
         "applications": result.n_stops,
+        "field_applications": summary.to_dict(orient="records"),
+    }
+
+
+def _rail_field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> dict[str, object]:
+    """The field campaign on ``--condition`` or ``--line`` with adhesion, each stop's rail
+    scattered, through the WSP of ``--wsp``."""
+    from .. import campaigns
+    from ..plants import rail_conditions_of
+
+    rail = cfg.load("rail_conditions", args.condition) if args.condition else cfg.load("lines", args.line)
+    wsp_name = args.wsp
+    if wsp_name is None:
+        wsp_name = "none" if all(c.name == "dry" for c in rail_conditions_of(rail)) else "reference"
+    wsp = None
+    if wsp_name != "none":
+        from ..agents.wsp import load_wsp_config
+
+        wsp = load_wsp_config("wsp" if wsp_name == "reference" else wsp_name)
+    valves = cfg.load("wsp_valves", args.wsp_valves or "axle")
+    campaign = cfg.load("campaigns", "field2022")
+    if args.repetitions is not None:
+        campaign = campaign.model_copy(update={"repetitions": args.repetitions})
+    total = len(campaigns.field_applications(campaign)) * campaign.repetitions
+    with progress(total, f"field campaign on {rail.name}") as bar:
+        result = campaigns.rail_field_campaign(
+            campaign,
+            setup,
+            args.seed,
+            rail,
+            valves,
+            wsp,
+            control_step_s=args.step,
+            executor=executor,
+            progress=bar.update,
+            chunk_size=args.chunk_size or DEFAULT_CHUNK_STOPS,
+            out=args.out,
+            resume=args.resume,
+        )
+    summary = result.application_summary()
+    rail_columns = ["braking_distance_m", "rail_peak_adhesion", "slide_energy_MJ", "longest_locked_s"]
+    rows = result.rows.concatenated("stops", rail_columns)
+    locked_stops = int(np.count_nonzero(rows["longest_locked_s"] > LOCKED_STOP_S))
+    print(
+        f"field campaign {campaign.name} on {rail.name}, WSP {wsp_name} ({valves.name} valves), {setup.name}, "
+        f"seed {args.seed}: {summary.shape[0]} field applications x {campaign.repetitions} = {result.n_stops} "
+        f"train stops"
+    )
+    print(f"{'mode':<10} {'v0':>4} {'braking dist. [m]':>18} {'rel std %':>9}")
+    for _, row in result.mode_speed_summary(summary).iterrows():
+        distance = row.braking_distance_m_mean
+        relative = 100 * row.braking_distance_m_std / distance
+        print(f"{row.brake_mode:<10} {row.v0_kmh:4.0f} {distance:18.1f} {relative:9.2f}")
+    print(
+        f"rail peak adhesion {rows['rail_peak_adhesion'].mean():.4f} (mean; 5-95 %: "
+        f"{np.quantile(rows['rail_peak_adhesion'], 0.05):.4f}-{np.quantile(rows['rail_peak_adhesion'], 0.95):.4f}), "
+        f"slide energy {rows['slide_energy_MJ'].mean():.2f} MJ (mean), stops with an axle locked over "
+        f"{LOCKED_STOP_S} s: {locked_stops}"
+    )
+    if args.figures:
+        from ..campaigns import figures
+
+        paths = figures.field_campaign_figures(result, Path(args.figures))
+        print("figures: " + ", ".join(str(p) for p in paths))
+    if args.csv:
+        result.write_csv(args.csv)
+    return {
+        "campaign": "field",
+        "setup": setup.name,
+        "seed": args.seed,
+        "step_s": args.step,
+        "applications": result.n_stops,
+        "rail": rail.name,
+        "rail_kind": "condition" if args.condition else "line",
+        "wsp": wsp_name if wsp is None or wsp_name == "reference" else wsp.name,
+        "wsp_valves": valves.name,
+        "rail_peak_adhesion_mean": float(rows["rail_peak_adhesion"].mean()),
+        "slide_energy_MJ_mean": float(rows["slide_energy_MJ"].mean()),
+        "longest_locked_s_max": float(rows["longest_locked_s"].max()),
+        "stops_with_locked_axle": locked_stops,
         "field_applications": summary.to_dict(orient="records"),
     }
 
@@ -328,7 +420,29 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         type=positive_int("--repetitions"),
         help="field campaign: stops per field application (default: the campaign's, 50)",
     )
-    p.add_argument("--step", **step)
+    p.add_argument(
+        "--step",
+        type=finite_positive("--step"),
+        default=None,
+        help=f"integration step in s (default {DEFAULT_STEP_S}; on a rail the WSP's control step, "
+        f"{DEFAULT_WSP_CONTROL_STEP_S})",
+    )
+    rail = p.add_argument_group("on a rail (field campaign; wheel-rail adhesion, docs/adhesion.md)")
+    where = rail.add_mutually_exclusive_group()
+    where.add_argument(
+        "--condition",
+        metavar="NAME",
+        help="rail condition (configs/rail_conditions: dry, wet, low): adhesion on, each stop's mu_0 scattered "
+        "by the condition's static_friction_relative_sigma",
+    )
+    where.add_argument("--line", metavar="NAME", help="a line of rail sections (configs/lines, e.g. low_patch)")
+    rail.add_argument(
+        "--wsp",
+        metavar="none|reference|PATH",
+        help="wheel-slide protection: none, reference (configs/agents/wsp.yaml) or a controller YAML; "
+        "default reference, none when every section is dry (a low-adhesion rail without WSP locks every wheel)",
+    )
+    rail.add_argument("--wsp-valves", metavar="NAME", help="WSP valves (configs/wsp_valves: axle, bogie; default axle)")
     add_execution_options(p)
     p.set_defaults(func=cmd_mcs)
 

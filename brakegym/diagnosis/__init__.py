@@ -10,6 +10,7 @@ The stages, in the order :mod:`.pipeline` runs them:
 - :mod:`.screening`: every effect tried on a grid, cheaply;
 - :mod:`.heldout` and :mod:`.judging`: candidates judged on recordings held out of the fit;
 - :mod:`.report`: the JSON report, its summary and the effect set of what was selected;
+- :mod:`.adhesion`: a fitted adhesion limit read as a rail (Polach's peak adhesion);
 - :mod:`.markdown`: the Markdown report and its figures.
 
 :mod:`.rules` holds every threshold.

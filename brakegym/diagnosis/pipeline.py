@@ -40,6 +40,7 @@ from ..effects import EFFECTS, Evidence
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
+from .adhesion import read_adhesion
 from .fitting import FitProblem, FitResult
 from .inputs import chain_report, zero_corrected
 from .judging import Candidate, Judge
@@ -142,6 +143,11 @@ class Diagnoser:
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
         }
+        if verdict.selected is not None and "adhesion_limit" in verdict.selected.effect_ids:
+            # The cap read as a rail: its peak adhesion, the nearest condition and Polach's mu_0.
+            mass_kg = float(np.mean([recording.mass_kg for recording in self.recordings]))
+            reading = read_adhesion(report["parameters"]["adhesion"], self.recordings[0].vehicle, mass_kg)
+            report["adhesion_limit_rail"] = reading.as_dict()
         return Diagnosis(report, self.recordings, baseline, verdict.selected, problem)
 
     def _fit_singles(

@@ -12,7 +12,7 @@ then axles and the discs of each axle. Nothing here integrates in time (that is 
 job), and nothing here reads configs: :mod:`brakegym.plants` builds these objects from them.
 """
 
-from .adhesion import PolachLaw, RailSections, WheelRailContact
+from .adhesion import PolachLaw, RailSections, WheelRailContact, static_friction_factor
 from .friction import FrictionLaw
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
 from .pneumatics import BrakeCylinder, CaliperLaw, WheelSlideProtectionValve
@@ -38,6 +38,7 @@ __all__ = [
     "HeatFlows",
     "PolachLaw",
     "RailSections",
+    "static_friction_factor",
     "RunningResistanceLaw",
     "ScatterPartition",
     "StochasticFriction",

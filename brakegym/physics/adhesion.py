@@ -17,7 +17,7 @@ vehicle's contact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -108,6 +108,15 @@ def creep_slope_at_fixed_friction(
     return np.maximum((2.0 / np.pi) * creep_stiffness_N_ / wheel_load_N * slope, 0.0)
 
 
+def static_friction_factor(relative_sigma, standard_normal):
+    """A rail's mu_0 over its nominal, lognormal with mean 1 and relative standard deviation
+    ``relative_sigma``: exp(sigma_ln z - sigma_ln^2 / 2), sigma_ln^2 = ln(1 + relative_sigma^2),
+    z ``standard_normal``. Lognormal because mu_0 is positive whatever the draw, with no bound to
+    choose and no truncation to renormalise (docs/adhesion.md)."""
+    log_sigma = np.sqrt(np.log1p(np.square(relative_sigma)))
+    return np.exp(log_sigma * standard_normal - 0.5 * log_sigma * log_sigma)
+
+
 @dataclass(frozen=True)
 class PolachLaw:
     """Polach's creep-force law of one rail condition (Polach 2005, Eqs. 11 and 20)."""
@@ -162,6 +171,37 @@ class PolachLaw:
         coefficients = self.adhesion_coefficient(creeps, creeps * speed_mps, wheel_load_N, creep_stiffness_N_)
         best = int(np.argmax(coefficients))
         return float(coefficients[best]), float(creeps[best])
+
+    def with_peak_adhesion(
+        self, peak_adhesion, speed_mps, wheel_load_N, creep_stiffness_N_, tolerance=1e-6, n_creeps=20001
+    ) -> PolachLaw:
+        """This law with the mu_0 whose :meth:`peak_adhesion` at ``speed_mps`` is
+        ``peak_adhesion`` (the other parameters kept), found by bisection on mu_0 to within
+        ``tolerance`` of the peak. The peak grows with mu_0: proportionally when the friction does
+        not fall with the slip speed (B = 0: mu_0 then only rescales the creep axis), a little
+        less when it does (a larger mu_0 moves the peak to a larger slip speed)."""
+        if not 0.0 < peak_adhesion < 1.0:
+            raise ValueError(f"peak_adhesion {peak_adhesion}: must lie between 0 and 1")
+
+        def peak(static_friction: float) -> float:
+            law = replace(self, static_friction=static_friction)
+            return law.peak_adhesion(speed_mps, wheel_load_N, creep_stiffness_N_, n_creeps=n_creeps)[0]
+
+        # Bracket by doubling and halving: F / Q can exceed mu_0 (the adhesion term adds up to
+        # mu / pi to the slip term's 2 mu / pi arctan), so mu_0 = peak is no bound.
+        low, high = 0.5 * peak_adhesion, peak_adhesion
+        while peak(low) > peak_adhesion:
+            low, high = 0.5 * low, low
+        while peak(high) < peak_adhesion:
+            low, high = high, 2.0 * high
+            if high > 10.0:
+                raise ValueError(f"no mu_0 up to 10 gives a peak adhesion of {peak_adhesion} at {speed_mps} m/s")
+        while True:
+            middle = 0.5 * (low + high)
+            value = peak(middle)
+            if abs(value - peak_adhesion) <= tolerance or high - low < 1e-12:
+                return replace(self, static_friction=middle)
+            low, high = (middle, high) if value < peak_adhesion else (low, middle)
 
 
 @dataclass(frozen=True)

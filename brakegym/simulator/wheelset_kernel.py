@@ -141,8 +141,9 @@ TRAINS_PER_THREAD = 8
 N_LAW_PARAMETERS = 5
 
 # Rows of the per-train constants of the adhesion option (N_WHEELSET_CONSTANTS, B).
-MASS_KG, BODY_MASS_KG, WHEEL_LOAD_N, CREEP_STIFFNESS_N = range(4)
-N_WHEELSET_CONSTANTS = 4
+# STATIC_FRICTION_FACTOR scales every section's mu_0 for that train (its rail's scatter; 1: the rail's own).
+MASS_KG, BODY_MASS_KG, WHEEL_LOAD_N, CREEP_STIFFNESS_N, STATIC_FRICTION_FACTOR = range(5)
+N_WHEELSET_CONSTANTS = 5
 
 # Entries of the scheme's parameter vector.
 (
@@ -178,16 +179,20 @@ def _axle_laws(position_m, section_starts_m, axle_offsets_m, sections):
 
 
 @numba.njit(**JIT_OPTIONS)
-def _creep_forces(speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, scheme, laws, sections, force_N, slope_N):
+def _creep_forces(
+    speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
+):
     """Each axle's force on the rail, both wheels (N, retarding for creep > 0), and its slope
-    dF/ds at fixed friction (N per unit creep), into ``force_N`` and ``slope_N`` (A,)."""
+    dF/ds at fixed friction (N per unit creep), into ``force_N`` and ``slope_N`` (A,); every
+    section's mu_0 times the train's ``friction_factor``."""
     regularisation = scheme[REGULARISATION_SPEED_MPS]
     for axle in range(force_N.shape[0]):
         law = laws[sections[axle]]
         u = wheel_speed_mps[axle]
         slip = speed_mps - u
         s = creep(speed_mps, u, regularisation)
-        mu0, ratio, decay = law[STATIC_FRICTION], law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
+        mu0 = law[STATIC_FRICTION] * friction_factor
+        ratio, decay = law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
         reduction_a, reduction_s = law[ADHESION_REDUCTION], law[SLIP_REDUCTION]
         coefficient = adhesion_coefficient(
             s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
@@ -434,10 +439,11 @@ def _substeps(
     u, u_new, force, slope = work[WHEEL_SPEED], work[NEW_WHEEL_SPEED], work[FORCE], work[SLOPE]
     pressure, clamp, slip_power, new_slip_power = work[PRESSURE], work[CLAMP], work[SLIP_POWER], work[NEW_SLIP_POWER]
     wheel_load, stiffness = loads[WHEEL_LOAD_N], loads[CREEP_STIFFNESS_N]
+    friction_factor = loads[STATIC_FRICTION_FACTOR]
     middle_speed, stop_fraction = rows[SPEED], math.nan
     middle_wheels = u.copy()
     _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-    _creep_forces(rows[SPEED], u, wheel_load, stiffness, scheme, laws, sections, force, slope)
+    _creep_forces(rows[SPEED], u, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
     _clamp_forces(parameters, stage_pressure_bar[0, train], clamp)
     resistance_power, mu_eff_speed = _substep_powers(
         parameters, rows[SPEED], u, clamp, force, loads, constants, slip_power
@@ -458,7 +464,7 @@ def _substeps(
         weight = 0.5 * delta * theta
         rows[POSITION] += weight * (v0 + v_new)
         _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-        _creep_forces(v_new, u_new, wheel_load, stiffness, scheme, laws, sections, force, slope)
+        _creep_forces(v_new, u_new, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
         new_resistance, new_mu_eff = _substep_powers(
             parameters, v_new, u_new, clamp, force, loads, constants, new_slip_power
         )

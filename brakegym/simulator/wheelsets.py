@@ -16,6 +16,7 @@ Wheel speeds are u = omega r (m/s) in the equations; ``state.WHEELSET_STATES`` n
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -51,8 +52,10 @@ class WheelRailAdhesion:
     """What the adhesion option adds to a plant: the rail's creep-force law (one for the whole
     line, or :class:`~brakegym.physics.adhesion.RailSections`), the wheels' contact, the inertia
     of each wheelset about its axis, the creep's regularisation speed, the longest wheelset
-    substep, and how far behind the train's position each axle runs (m, one per axle; all at the
-    train's position if not given), which decides when each axle enters a section."""
+    substep, how far behind the train's position each axle runs (m, one per axle; all at the
+    train's position if not given), which decides when each axle enters a section, and each
+    train's own rail: a factor on every section's mu_0, one per train of the batch (a campaign's
+    scatter of the rail, docs/adhesion.md; none: every train on the rail as given)."""
 
     law: PolachLaw | RailSections
     contact: WheelRailContact
@@ -60,6 +63,13 @@ class WheelRailAdhesion:
     regularisation_speed_mps: float = DEFAULT_REGULARISATION_SPEED_MPS
     max_substep_s: float = DEFAULT_MAX_SUBSTEP_S
     axle_offsets_m: tuple[float, ...] | None = None
+    static_friction_factor: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.static_friction_factor is not None and not all(
+            math.isfinite(f) and f > 0 for f in self.static_friction_factor
+        ):
+            raise ValueError(f"static_friction_factor {self.static_friction_factor}: every factor must be positive")
 
     def law_at(self, position_m: np.ndarray) -> PolachLaw:
         """The creep-force law under each axle, train positions ``position_m`` (B,): the law
@@ -130,6 +140,10 @@ class AdhesionSimulator(Simulator):
         self.rail_table = adhesion.rail_table(plant.n_axles)
         # Per train, what the kernel reads (rows wheelset_kernel.MASS_KG, ...).
         self.wheelset_constants = np.empty((wheelset_kernel.N_WHEELSET_CONSTANTS, self.n_trains))
+        factor = adhesion.static_friction_factor
+        if factor is not None and len(factor) != self.n_trains:
+            raise ValueError(f"static_friction_factor: {len(factor)} factors for {self.n_trains} trains")
+        self.wheelset_constants[wheelset_kernel.STATIC_FRICTION_FACTOR] = 1.0 if factor is None else factor
         self._set_train_loads(np.arange(self.n_trains))
 
     def _set_train_loads(self, index: np.ndarray) -> None:
@@ -176,6 +190,19 @@ class AdhesionSimulator(Simulator):
     def creep_stiffness_N(self) -> np.ndarray:
         """G pi a b c_11 / 4 of each train's contact at its wheel load, N."""
         return self.wheelset_constants[wheelset_kernel.CREEP_STIFFNESS_N]
+
+    @property
+    def static_friction_factor(self) -> np.ndarray:
+        """The factor on each train's rail mu_0 (B,)."""
+        return self.wheelset_constants[wheelset_kernel.STATIC_FRICTION_FACTOR]
+
+    def rail_law_at(self, position_m: np.ndarray) -> PolachLaw:
+        """The creep-force law under each axle (:meth:`WheelRailAdhesion.law_at`), its mu_0
+        times each train's :attr:`static_friction_factor` where the adhesion option gives one."""
+        law = self.adhesion.law_at(position_m)
+        if self.adhesion.static_friction_factor is None:
+            return law
+        return dataclasses.replace(law, static_friction=law.static_friction * self.static_friction_factor)
 
     @property
     def wheel_speed_mps(self) -> np.ndarray:
@@ -265,7 +292,7 @@ class AdhesionSimulator(Simulator):
                     "needs that state's wheel_speed_mps (A, B)"
                 )
             wheel_speed_mps = self.wheel_speed_mps
-        law = self.adhesion.law_at(train[POSITION])
+        law = self.rail_law_at(train[POSITION])
         force = self.creep_force_N(train[SPEED], wheel_speed_mps, law).sum(axis=0)
         resistance = self.plant.running_resistance.force_N(train[SPEED], self.resistance_A_N)
         return np.where(moving, (force + resistance) / self.body_mass_kg, 0.0)

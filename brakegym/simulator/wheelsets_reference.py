@@ -140,7 +140,7 @@ class NumpyAdhesionSimulator(AdhesionSimulator):
         speeds = np.empty((3, self.n_trains))
         wheel_speeds[0], speeds[0] = u, train[SPEED]
         stop_fraction = np.full(self.n_trains, np.nan)
-        law = self.adhesion.law_at(train[POSITION])
+        law = self.rail_law_at(train[POSITION])
         powers = self._substep_powers(train[SPEED], u, p_start, law)
         for j in range(n):
             tau = (j + 1) * delta / h  # the substep's end, as a fraction of the step
@@ -156,7 +156,7 @@ class NumpyAdhesionSimulator(AdhesionSimulator):
             u_new = np.where(stops, 0.0, u_new)
             weight = np.where(active, 0.5 * delta * theta, 0.0)
             train[POSITION] += weight * (v0 + v_new)
-            law = self.adhesion.law_at(train[POSITION])
+            law = self.rail_law_at(train[POSITION])
             new_powers = self._substep_powers(v_new, u_new, pressure, law)
             train[RESISTANCE_WORK] += weight * (powers["resistance"] + new_powers["resistance"])
             train[MU_EFF_DISTANCE] += weight * (powers["mu_eff"] + new_powers["mu_eff"])
