@@ -152,7 +152,7 @@ def test_reward_terms_sum_to_the_reward_and_penalise_sliding():
         assert set(terms) == {"adhesion", "distance", "slide", "locked"}
         np.testing.assert_array_equal(reward, sum(terms.values()))
         slides += terms["slide"]
-    np.testing.assert_allclose(-slides, info["slide_energy_MJ"], rtol=1e-9)
+    np.testing.assert_allclose(-slides, env.config.reward.slide_per_MJ * info["slide_energy_MJ"], rtol=1e-9)
     # Dumping the cylinders leaves the wheels rolling, with no slide to speak of.
     assert info["slide_energy_MJ"][0] > 100 * info["slide_energy_MJ"][1]
 
@@ -222,3 +222,54 @@ def test_the_loader_refuses_what_is_not_a_wsp_policy(tmp_path):
     (tmp_path / "training.json").write_text('{"env": "StationStop-v0"}')
     with pytest.raises(ValueError, match="not a WSP policy"):
         load_wsp_controller(tmp_path)
+
+
+def test_a_trained_policy_acts_alike_in_the_env_and_as_a_wsp_controller_of_the_stops(tmp_path):
+    """A policy folder (a tiny PPO run) drives the environment (its observations) and, through
+    load_wsp_controller, the stops of wsp_train_stops (BcuMeasurements): the same actions for the
+    same measurements."""
+    import yaml
+
+    from brakegym.agents.rl import PolicyController, train
+    from brakegym.applications import TrainApplication
+    from brakegym.plants import wheel_rail_adhesion
+    from brakegym.wheel_slide import wsp_train_stops
+
+    slow = {"initial_speed_kmh": {"low": 20.0, "high": 30.0}}
+    entry = {
+        "n_envs": 2,
+        "n_timesteps": 64,
+        "policy": "MlpPolicy",
+        "normalize": {"norm_obs": True, "norm_reward": True},
+        "n_steps": 32,
+        "batch_size": 64,
+        "n_epochs": 1,
+        "policy_kwargs": {"net_arch": [8, 8]},
+    }
+    own = {"eval_freq_steps": 10**9, "n_eval_episodes": 2, "env_config": slow, "kernel_threads": 1}
+    hyper = tmp_path / "hyper.yaml"
+    hyper.write_text(yaml.safe_dump({ENV_ID: entry, "brakegym": {ENV_ID: own}}))
+    folder = train("ppo", ENV_ID, tmp_path / "agent", seed=1, hyperparameters=hyper, progress_bar=False)
+
+    env = BrakeVectorEnv(ENV_ID, num_envs=2, config=slow, autoreset=False)
+    on_observations = PolicyController(folder)
+    on_measurements = WspEnvController(load_wsp_controller(folder), env)
+    observation, info = env.reset(seed=5)
+    on_measurements.reset(info)
+    for _ in range(60):
+        actions = on_observations.act(observation)
+        np.testing.assert_array_equal(on_measurements.act(observation), actions)
+        observation, *_ = env.step(actions)
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    adhesion = wheel_rail_adhesion(vehicle, cfg.load("rail_conditions", "low"))
+    stops = wsp_train_stops(
+        vehicle,
+        [TrainApplication("empty", "emergency", "EP", 20.0)],
+        adhesion,
+        cfg.load("wsp_valves", "axle"),
+        load_wsp_controller(folder),
+    )
+    assert 0 < stops.summary.braking_distance_m[0] < np.inf
+    with pytest.raises(ValueError, match="valves"):
+        load_wsp_controller(folder)(np.arange(8) // 2, 0.02)  # trained on a valve per axle
