@@ -96,8 +96,8 @@ def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], An
         folder = Path(agent)
         if not (folder / "training.json").is_file():
             raise UsageError(
-                f"--agent {agent}: not pid, ppo, sac, ppo-residual, none, wsp, wsp-true-speed or an agent folder "
-                "with training.json"
+                f"--agent {agent}: not pid, ppo, sac, ppo-residual or an agent folder with training.json "
+                "(nor none, wsp, wsp-true-speed, the agents of an environment with WSP valves)"
             )
     controller = PolicyController(folder)
     trained_on = "brakegym/" + controller.meta["env"]

@@ -43,8 +43,8 @@ REPORTED_DISC_STATES = slice(MU, T_DISC + 1)
 #: Episode keys are drawn below this bound (so that key + control step stays an int64 sample
 #: number of the counter-based streams, :mod:`brakegym.reliability.streams`).
 EPISODE_KEY_LIMIT = 2**62
-#: Streams of the keyed episode draws (``wheel_rail`` fleets): the episode's initial speed, load
-#: and disc temperature, and its friction scatter (:meth:`~brakegym.plants.TrainScatter.draw_for_samples`).
+# Streams of the keyed episode draws of the ``wheel_rail`` fleets, the episode's initial speed, load
+# and disc temperature, and its friction scatter (TrainScatter.draw_for_samples).
 EPISODE_DRAW_STREAM, FRICTION_DRAW_STREAM = 1, 2
 if (T_FRIC, T_DISC) != (MU + 1, MU + 2):
     raise ImportError(

@@ -63,9 +63,9 @@ class BrakeTask:
     stress_quantities: ClassVar[tuple[str, ...]] = ()
     #: reset options the task accepts besides the fleet's
     options: ClassVar[tuple[str, ...]] = ()
-    #: what an action commands: ``"pressure"``, a cylinder pressure per control group in [-1, 1]
-    #: (``Box``); ``"valves"``, a WSP valve command per valve, 0 dump, 1 hold, 2 apply
-    #: (``MultiDiscrete``), for the fleets with ``wheel_rail``
+    #: ``"pressure"`` when an action is a cylinder pressure per control group in [-1, 1]
+    #: (``Box``), ``"valves"`` when it is a WSP valve command per valve, 0 dump, 1 hold, 2 apply
+    #: (``MultiDiscrete``, for the fleets with ``wheel_rail``)
     action_kind: ClassVar[str] = "pressure"
     #: whether the observation starts with the fleet's common sensor columns; a task that
     #: observes otherwise (a brake control unit's wheel-speed sensors) gives all its columns in

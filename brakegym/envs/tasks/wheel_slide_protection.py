@@ -72,7 +72,7 @@ if TYPE_CHECKING:
     from ..fleet import TrainFleet
 
 STANDARD_GRAVITY_MPS2 = 9.80665
-#: Scales of the observation columns: wheel speeds, wheel decelerations, train deceleration.
+# Scales of the observation columns (wheel speeds, wheel decelerations, train deceleration).
 WHEEL_SPEED_SCALE_MPS = 50.0
 WHEEL_DECELERATION_SCALE_MPS2 = 10.0
 TRAIN_DECELERATION_SCALE_MPS2 = 2.0
