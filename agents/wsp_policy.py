@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..envs.tasks.wheel_slide_protection import bcu_observation
+from ..envs.tasks.wheel_slide_protection import BcuFeatures
 from ..physics.pneumatics import VALVE_APPLY, VALVE_DUMP
 from ..wheel_slide import BcuMeasurement, WspControl
 
@@ -46,7 +46,7 @@ class NoWsp:
 class PolicyWsp:
     """A policy trained on ``WheelSlideProtection-v0`` (an agent folder of ``brakegym train``) as
     a :class:`~brakegym.wheel_slide.WspControl`: it observes what the environment's observation
-    holds (:func:`~brakegym.envs.tasks.wheel_slide_protection.bcu_observation`), normalised with
+    holds (:class:`~brakegym.envs.tasks.wheel_slide_protection.BcuFeatures`), normalised with
     the training's statistics, and acts deterministically."""
 
     uses_train_speed = False
@@ -72,18 +72,21 @@ class PolicyWsp:
         trained_valves = self.policy.model.action_space.shape[0]
         if trained_valves != self.n_valves:
             raise ValueError(f"{agent_dir}: the policy commands {trained_valves} valves, the train has {self.n_valves}")
-        self._previous_wheel_speed_mps = np.zeros((0, len(valve_of_axle)))
+        self.n_axles = len(valve_of_axle)
+        self.features = BcuFeatures(0, self.n_axles, self.control_step_s, self.max_pressure_bar)
+        self._step = np.zeros(0, dtype=np.int64)
 
     def reset(self, measurement: BcuMeasurement) -> None:
-        self._previous_wheel_speed_mps = np.asarray(measurement.wheel_speed_mps, dtype=float).copy()
+        """Start braking: the reset's reading is the first (as in the environment)."""
+        n = len(measurement.wheel_speed_mps)
+        self.features = BcuFeatures(n, self.n_axles, self.control_step_s, self.max_pressure_bar)
+        self._step = np.zeros(n, dtype=np.int64)
 
     def valves(self, measurement: BcuMeasurement) -> np.ndarray:
-        wheels = np.asarray(measurement.wheel_speed_mps, dtype=float)
-        observation = np.empty((len(wheels), 4 * wheels.shape[1] + 2))
-        bcu_observation(
-            measurement, self._previous_wheel_speed_mps, self.control_step_s, self.max_pressure_bar, observation
-        )
-        self._previous_wheel_speed_mps = wheels.copy()
+        n = len(measurement.wheel_speed_mps)
+        observation = np.empty((n, 5 * self.n_axles + 3))
+        self.features.observe(measurement, self._step, observation)
+        self._step = self._step + 1
         actions = self.policy.act(observation.astype(np.float32))
         return np.asarray(actions, dtype=np.int64) + VALVE_DUMP
 

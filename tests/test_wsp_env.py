@@ -60,9 +60,9 @@ def short_stops():
 def test_spaces_are_the_valves_and_the_brake_control_units_measurements():
     env = BrakeEnv("wheel_slide_protection")
     assert env.action_space == gym.spaces.MultiDiscrete([3] * 8)  # emu_8axle, a valve per axle
-    assert env.observation_space.shape == (4 * 8 + 2,)
+    assert env.observation_space.shape == (5 * 8 + 3,)
     names = env.observation_names
-    assert names[0] == "wheel_speed_1" and names[-2:] == ("train_deceleration", "brake_demand")
+    assert names[0] == "wheel_speed_1" and names[-3:] == ("train_deceleration", "brake_demand", "reference_speed")
     assert not any("speed_mps" in name for name in names)  # the train speed is not observed
     observation, info = env.reset(seed=3)
     assert env.observation_space.contains(observation)
@@ -273,3 +273,26 @@ def test_a_trained_policy_acts_alike_in_the_env_and_as_a_wsp_controller_of_the_s
     assert 0 < stops.summary.braking_distance_m[0] < np.inf
     with pytest.raises(ValueError, match="valves"):
         load_wsp_controller(folder)(np.arange(8) // 2, 0.02)  # trained on a valve per axle
+
+
+def test_bcu_features_follow_the_fastest_wheel_falling_at_most_at_their_limit_and_repeat_a_step():
+    from brakegym.envs.tasks.wheel_slide_protection import REFERENCE_DECELERATION_MPS2, BcuFeatures
+    from brakegym.wheel_slide import BcuMeasurement
+
+    def reading(speed_mps):
+        wheels = np.array([[speed_mps, speed_mps - 1.0]])
+        return BcuMeasurement(wheels, np.zeros((1, 2)), np.zeros(1), np.zeros((1, 2)))
+
+    features = BcuFeatures(1, 2, 0.02, 4.5)
+    out = np.empty((1, 5 * 2 + 3))
+    features.observe(reading(30.0), np.array([0]), out)
+    assert features.reference_speed_mps[0] == 30.0
+    features.observe(reading(10.0), np.array([1]), out)  # every wheel slides: the reference may not follow
+    assert features.reference_speed_mps[0] == pytest.approx(30.0 - 0.02 * REFERENCE_DECELERATION_MPS2)
+    first = out.copy()
+    features.observe(reading(10.0), np.array([1]), out)  # the same step observed again
+    np.testing.assert_array_equal(out, first)
+    assert features.reference_speed_mps[0] == pytest.approx(30.0 - 0.02 * REFERENCE_DECELERATION_MPS2)
+    features.restart(np.array([0]))
+    features.observe(reading(20.0), np.array([0]), out)
+    assert features.reference_speed_mps[0] == 20.0 and out[0, 4] == 0.0  # no wheel deceleration at the first reading

@@ -21,14 +21,17 @@ policy are controllers of this one kind (:mod:`brakegym.agents.wsp_policy`).
 
 Observation
 -----------
-What a brake control unit measures, ``Box(-5, 5, (4 axles + 2,), float32)``, no true train speed:
+What a brake control unit measures, ``Box(-5, 5, (5 axles + 3,), float32)``, no true train speed:
 each axle's wheel speed from its speed sensor (Gaussian noise ``wheel_speed_noise_mps``, rounded
 to ``wheel_speed_resolution_mps``) over 50 m/s; each axle's speed relative to the fastest,
 (u_i - max u) / max(max u, 1 m/s); each axle's deceleration over the last control step from those
 readings, over 10 m/s^2; each cylinder pressure (noise ``sensor_noise.pressure_bar``) over the
-vehicle's maximum pressure; the train's deceleration from its sensor (noise
+vehicle's maximum pressure; each axle's slip against the reference speed,
+(v_ref - u_i) / max(v_ref, 1 m/s); the train's deceleration from its sensor (noise
 ``sensor_noise.decel_mps2``) over 2 m/s^2; the brake control's pressure demand for the coming
-step over the maximum pressure. Each column is clipped to [-5, 5]. :func:`bcu_observation`
+step over the maximum pressure; the reference speed over 50 m/s. The reference speed is the
+brake control unit's estimate of the train speed: the fastest wheel, falling no faster than
+1.3 m/s^2 (:class:`BcuFeatures`). Each column is clipped to [-5, 5]. :func:`bcu_observation`
 computes it from a :class:`~brakegym.wheel_slide.BcuMeasurement`, here and for a trained policy
 run by :func:`~brakegym.wheel_slide.wsp_train_stops`.
 
@@ -78,6 +81,9 @@ WHEEL_DECELERATION_SCALE_MPS2 = 10.0
 TRAIN_DECELERATION_SCALE_MPS2 = 2.0
 #: Every observation column is clipped to +- this.
 OBSERVATION_BOUND = 5.0
+#: The brake control unit's reference speed falls no faster than this (as the reference WSP's,
+#: configs/agents/wsp.yaml; ASSUMED there).
+REFERENCE_DECELERATION_MPS2 = 1.3
 #: Below this speed the relative wheel speeds divide by it.
 MIN_REFERENCE_SPEED_MPS = 1.0
 #: Stream of the task's keyed draws (the coast) and of the sensor noise, derived from the fleet's
@@ -114,25 +120,69 @@ class WheelSlideProtectionConfig(BrakeEnvConfig):
 def bcu_observation(
     measurement: BcuMeasurement,
     previous_wheel_speed_mps: np.ndarray,
+    reference_speed_mps: np.ndarray,
     control_step_s: float,
     max_pressure_bar: float,
     out: np.ndarray,
 ) -> None:
     """The observation of the WSP task (module documentation) from what the brake control unit
-    measures now and the wheel speeds it read one control step before, written into ``out``
-    (B, 4 axles + 2)."""
+    measures now, the wheel speeds it read one control step before and its reference speed
+    (:class:`BcuFeatures`), written into ``out`` (B, 5 axles + 3)."""
     wheels = measurement.wheel_speed_mps
     axles = wheels.shape[1]
     fastest = wheels.max(axis=1, keepdims=True)
+    reference = reference_speed_mps[:, None]
     out[:, :axles] = wheels / WHEEL_SPEED_SCALE_MPS
     out[:, axles : 2 * axles] = (wheels - fastest) / np.maximum(fastest, MIN_REFERENCE_SPEED_MPS)
     out[:, 2 * axles : 3 * axles] = (previous_wheel_speed_mps - wheels) / (
         control_step_s * WHEEL_DECELERATION_SCALE_MPS2
     )
     out[:, 3 * axles : 4 * axles] = measurement.cylinder_pressure_bar / max_pressure_bar
-    out[:, 4 * axles] = measurement.deceleration_mps2 / TRAIN_DECELERATION_SCALE_MPS2
-    out[:, 4 * axles + 1] = measurement.demand_bar.mean(axis=1) / max_pressure_bar
+    out[:, 4 * axles : 5 * axles] = (reference - wheels) / np.maximum(reference, MIN_REFERENCE_SPEED_MPS)
+    out[:, 5 * axles] = measurement.deceleration_mps2 / TRAIN_DECELERATION_SCALE_MPS2
+    out[:, 5 * axles + 1] = measurement.demand_bar.mean(axis=1) / max_pressure_bar
+    out[:, 5 * axles + 2] = reference_speed_mps / WHEEL_SPEED_SCALE_MPS
     np.clip(out, -OBSERVATION_BOUND, OBSERVATION_BOUND, out=out)
+
+
+class BcuFeatures:
+    """What a brake control unit keeps between control steps for the observation of
+    ``n_trains`` trains: the wheel speeds read one step before and a reference speed, the fastest
+    wheel but falling no faster than ``REFERENCE_DECELERATION_MPS2`` (when every wheel slides
+    together the fastest one is slower than the train; the reference WSP's estimate,
+    ``configs/agents/wsp.yaml``). Observing the same control step again (the vector env observes
+    once more after restarting trains) starts from the state before that step's first reading."""
+
+    def __init__(self, n_trains: int, n_axles: int, control_step_s: float, max_pressure_bar: float) -> None:
+        self.control_step_s, self.max_pressure_bar = float(control_step_s), float(max_pressure_bar)
+        self.previous_wheel_speed_mps = np.full((n_trains, n_axles), np.nan)
+        self.reference_speed_mps = np.full(n_trains, np.nan)
+        self.step = np.full(n_trains, -1, dtype=np.int64)
+        self._before = (self.previous_wheel_speed_mps.copy(), self.reference_speed_mps.copy())
+
+    def restart(self, index: np.ndarray) -> None:
+        """Trains ``index`` start anew: their next reading is their first."""
+        self.previous_wheel_speed_mps[index] = np.nan
+        self.reference_speed_mps[index] = np.nan
+        self.step[index] = -1
+
+    def observe(self, measurement: BcuMeasurement, step: np.ndarray, out: np.ndarray) -> None:
+        """The observation (:func:`bcu_observation`) of ``measurement`` at each train's control
+        ``step`` into ``out``, and the state moved on to it."""
+        again = step == self.step
+        previous = np.where(again[:, None], self._before[0], self.previous_wheel_speed_mps)
+        reference = np.where(again, self._before[1], self.reference_speed_mps)
+        self._before = (previous.copy(), reference.copy())
+        wheels = np.asarray(measurement.wheel_speed_mps, dtype=float)
+        fastest = wheels.max(axis=1)
+        unread = np.isnan(reference)
+        previous[unread] = wheels[unread]
+        floor = reference - REFERENCE_DECELERATION_MPS2 * self.control_step_s
+        reference = np.where(unread, fastest, np.maximum(fastest, floor))
+        bcu_observation(measurement, previous, reference, self.control_step_s, self.max_pressure_bar, out)
+        self.previous_wheel_speed_mps = wheels.copy()
+        self.reference_speed_mps = reference
+        self.step = np.array(step, dtype=np.int64, copy=True)
 
 
 def observation_columns(n_axles: int) -> list[tuple[str, float, float]]:
@@ -141,7 +191,8 @@ def observation_columns(n_axles: int) -> list[tuple[str, float, float]]:
     names += [f"relative_wheel_speed_{axle + 1}" for axle in range(n_axles)]
     names += [f"wheel_deceleration_{axle + 1}" for axle in range(n_axles)]
     names += [f"pressure_{axle + 1}" for axle in range(n_axles)]
-    names += ["train_deceleration", "brake_demand"]
+    names += [f"slip_{axle + 1}" for axle in range(n_axles)]
+    names += ["train_deceleration", "brake_demand", "reference_speed"]
     return [(name, -OBSERVATION_BOUND, OBSERVATION_BOUND) for name in names]
 
 
@@ -182,7 +233,7 @@ class WheelSlideProtection(BrakeTask):
         self.previous_slip_work_J = np.zeros(n)
         self.locked_current_s = np.zeros((n, axles))
         self.locked_longest_s = np.zeros((n, axles))
-        self.previous_wheel_speed_mps = np.zeros((n, axles))
+        self.features = BcuFeatures(n, axles, fleet.control_step_s, fleet.max_pressure_bar)
         self.measurement: BcuMeasurement | None = None
         self.ideal_distance_table = self._ideal_distance_table()
         self.ideal_braking_distance_m = np.full(n, np.nan)
@@ -238,7 +289,7 @@ class WheelSlideProtection(BrakeTask):
         self.previous_slip_work_J[index] = 0.0
         self.locked_current_s[index] = 0.0
         self.locked_longest_s[index] = 0.0
-        self.previous_wheel_speed_mps[index] = np.nan  # the reset's reading takes its place
+        self.features.restart(index)
 
     # -------------------------------------------------------------------------------------------
     def observation_columns(self) -> list[tuple[str, float, float]]:
@@ -268,10 +319,7 @@ class WheelSlideProtection(BrakeTask):
             demand_bar=self._demand_now_bar(),
             train_speed_mps=fleet.speed_mps.copy(),
         )
-        unread = np.isnan(self.previous_wheel_speed_mps[:, 0])
-        self.previous_wheel_speed_mps[unread] = wheels[unread]
-        bcu_observation(measurement, self.previous_wheel_speed_mps, fleet.control_step_s, fleet.max_pressure_bar, out)
-        self.previous_wheel_speed_mps = wheels
+        self.features.observe(measurement, fleet.episodes.step, out)
         self.measurement = measurement
 
     # -------------------------------------------------------------------------------------------
