@@ -24,6 +24,11 @@ algorithm and fail):
     ``{base: pid, scale: s}``: the policy is a *residual* on the PID baseline (agents/pid.py): the
     command sent is ``clip(pid + s * policy, -1, 1)``, and the policy observes the environment's
     observation plus the PID's command. The PID gains are stored with the agent.
+``kernel_threads``
+    the most threads the simulator's compiled kernels use during training
+    (:func:`brakegym.simulator.kernel.set_kernel_threads`; results are the same whatever the
+    count). 1 on a machine of few cores: the kernels' OpenMP threads keep spinning after each
+    parallel step and starve torch, which is several times slower then.
 ``jerk_shaping``
     ``{above_mps3: j0, weight_per_mps3: w}``: a training-only reward term ``-w * max(0, jerk - j0)``
     per control step on the train's jerk, which penalises the *peak* jerk (the environment's own
@@ -52,7 +57,7 @@ ALGORITHMS = ("ppo", "sac", "ppo-residual")
 # Keys of an entry that configure the run rather than the algorithm (rl_zoo3 takes them too).
 ZOO_SETUP_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
 # brakegym's own keys, allowed only in the file's ``brakegym`` section.
-BRAKEGYM_KEYS = ("eval_freq_steps", "n_eval_episodes", "env_config", "residual", "jerk_shaping")
+BRAKEGYM_KEYS = ("eval_freq_steps", "n_eval_episodes", "env_config", "residual", "jerk_shaping", "kernel_threads")
 OWN_SECTION = "brakegym"
 
 
@@ -277,6 +282,10 @@ def train(
     from stable_baselines3.common.vec_env import VecNormalize
 
     hyper = load_hyperparameters(algo, env_id, hyperparameters)
+    if "kernel_threads" in hyper:
+        from ..simulator.kernel import set_kernel_threads
+
+        set_kernel_threads(int(hyper["kernel_threads"]))
     algo_kwargs = {k: v for k, v in hyper.items() if k not in ZOO_SETUP_KEYS + BRAKEGYM_KEYS}
     if "learning_rate" in algo_kwargs:
         algo_kwargs["learning_rate"] = _learning_rate(algo_kwargs["learning_rate"])

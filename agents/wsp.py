@@ -30,6 +30,7 @@ from pydantic import Field
 
 from .. import config as cfg
 from ..physics.pneumatics import VALVE_APPLY, VALVE_DUMP, VALVE_HOLD
+from ..wheel_slide import BcuMeasurement
 
 
 class WspControllerConfig(cfg.StrictModel):
@@ -62,6 +63,10 @@ def load_wsp_config(name_or_path: str | Path = "wsp") -> WspControllerConfig:
     return config
 
 
+def _wheel_speeds(measurement: BcuMeasurement | np.ndarray) -> np.ndarray:
+    return measurement.wheel_speed_mps if isinstance(measurement, BcuMeasurement) else measurement
+
+
 class WspController:
     """The reference WSP controller for a batch of trains.
 
@@ -80,17 +85,21 @@ class WspController:
     def uses_train_speed(self) -> bool:
         return self.config.reference_speed == "train"
 
-    def reset(self, wheel_speed_mps: np.ndarray) -> None:
-        """Start braking with the wheels at ``wheel_speed_mps`` (B, A)."""
-        wheels = np.asarray(wheel_speed_mps, dtype=float)
+    def reset(self, measurement: BcuMeasurement | np.ndarray) -> None:
+        """Start braking with the wheels at the measured speeds (a
+        :class:`~brakegym.wheel_slide.BcuMeasurement`, or the wheel speeds (B, A) alone)."""
+        wheels = np.asarray(_wheel_speeds(measurement), dtype=float)
         self.reference_speed_mps = wheels.max(axis=1)
         self._previous_wheel_speed_mps = wheels.copy()
 
-    def valves(self, wheel_speed_mps: np.ndarray, train_speed_mps: np.ndarray | None = None) -> np.ndarray:
-        """The valve commands (B, valves) for the wheel speeds (B, A) measured now; the train
-        speed (B,) only for the variant that is given it."""
+    def valves(self, measurement: BcuMeasurement | np.ndarray, train_speed_mps: np.ndarray | None = None) -> np.ndarray:
+        """The valve commands (B, valves) for what is measured now: a
+        :class:`~brakegym.wheel_slide.BcuMeasurement` (the train speed in it only for the variant
+        that is given it), or the wheel speeds (B, A) and ``train_speed_mps`` (B,)."""
         config = self.config
-        wheels = np.asarray(wheel_speed_mps, dtype=float)
+        if isinstance(measurement, BcuMeasurement):
+            train_speed_mps = measurement.train_speed_mps
+        wheels = np.asarray(_wheel_speeds(measurement), dtype=float)
         if self.uses_train_speed:
             if train_speed_mps is None:
                 raise ValueError(f"WSP controller {config.name!r} uses the true train speed: pass train_speed_mps")

@@ -11,7 +11,7 @@ the load-weighing signal) and ``act(observations) -> actions`` over the batch.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -45,6 +45,8 @@ class StressResult:
     peak_disc_temperature_C: np.ndarray
     ended_by_time_limit: np.ndarray
     worst: list[dict[str, Any]]  # the worst episodes: conditions and traces
+    # The task's further per-episode quantities (its stress_quantities), by info key.
+    quantities: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def make_vector_env(
@@ -75,6 +77,8 @@ def run_stress(
     }
     worst: list[dict[str, Any]] = []
     metric_name = None
+    quantity_names = task_class(env_id).stress_quantities
+    quantities: dict[str, list[np.ndarray]] = {name: [] for name in quantity_names}
     for batch, start in enumerate(range(0, episodes, batch_size)):
         n = min(batch_size, episodes - start)
         env = make_vector_env(env_id, n, setup, config)
@@ -86,7 +90,7 @@ def run_stress(
         loads = np.array([vehicle_loads[i] for i in env.core.fleet.episodes.load_index])
         initial_speed = mps_to_kmh(info["initial_speed_mps"])
         # What each train's episode ended with, kept from the step it ended.
-        ended_with = (metric_name, "peak_jerk_mps3", "peak_friction_temperature_C")
+        ended_with = (metric_name, "peak_jerk_mps3", "peak_friction_temperature_C", *quantity_names)
         final = {key: np.zeros_like(info[key]) for key in ended_with}
         final["is_success"] = np.zeros(n, dtype=bool)
         final["time_limit"] = np.zeros(n, dtype=bool)
@@ -136,6 +140,8 @@ def run_stress(
         columns["jerk"].append(final["peak_jerk_mps3"])
         columns["temperature"].append(final["peak_friction_temperature_C"])
         columns["time_limit"].append(final["time_limit"])
+        for name in quantity_names:
+            quantities[name].append(final[name])
         if progress is not None:
             progress(n)
     assert metric_name is not None
@@ -152,6 +158,7 @@ def run_stress(
         peak_disc_temperature_C=np.concatenate(columns["temperature"]),
         ended_by_time_limit=np.concatenate(columns["time_limit"]),
         worst=[],
+        quantities={name: np.concatenate(values) for name, values in quantities.items()},
     )
     result.worst = sorted(worst, key=lambda w: (w["success"], -abs(w[metric_name])))[:keep_worst]
     return result
@@ -186,6 +193,15 @@ def summarise(result: StressResult, mask: np.ndarray | None = None) -> dict[str,
         "peak_jerk_mps3_max": float(result.peak_jerk_mps3[mask].max()),
         "peak_disc_temperature_C_max": float(result.peak_disc_temperature_C[mask].max()),
         "ended_by_time_limit": int(result.ended_by_time_limit[mask].sum()),
+        **{
+            f"{name}_{statistic}": float(function(values[mask]))
+            for name, values in result.quantities.items()
+            for statistic, function in (
+                ("mean", np.mean),
+                ("p95", lambda v: np.percentile(v, 95)),
+                ("max", np.max),
+            )
+        },
     }
 
 
@@ -207,11 +223,13 @@ def table(reports: Sequence[dict[str, Any]]) -> str:
     """A Markdown table: one row per agent and speed band (and overall)."""
     metric = reports[0]["metric"]
     unit = task_class(reports[0]["env"]).metric[1]
+    quantity_names = task_class(reports[0]["env"]).stress_quantities
     header = (
         f"| agent | speed band (km/h) | episodes | success | {metric} mean | std | p95 abs | p99 abs | worst abs "
         f"| peak jerk p95 / max (m/s3) | peak disc T max (C) |"
     )
-    lines = [f"({metric} in {unit})", "", header, "|" + "---|" * 11]
+    header += "".join(f" {name} mean / p95 / max |" for name in quantity_names)
+    lines = [f"({metric} in {unit})", "", header, "|" + "---|" * (11 + len(quantity_names))]
     for rep in reports:
         for label, row in [
             (f"{b['initial_speed_kmh'][0]:.0f}-{b['initial_speed_kmh'][1]:.0f}", b) for b in rep["bands"]
@@ -224,6 +242,10 @@ def table(reports: Sequence[dict[str, Any]]) -> str:
                 f"| {row[metric + '_abs_p99']:.3f} | {row[metric + '_abs_worst']:.3f} "
                 f"| {row['peak_jerk_mps3_p95']:.2f} / {row['peak_jerk_mps3_max']:.2f} "
                 f"| {row['peak_disc_temperature_C_max']:.0f} |"
+                + "".join(
+                    f" {row[name + '_mean']:.2f} / {row[name + '_p95']:.2f} / {row[name + '_max']:.2f} |"
+                    for name in quantity_names
+                )
             )
     return "\n".join(lines)
 

@@ -52,15 +52,35 @@ class LockedTimeObserver:
         self.total_s += np.where(locked, sim.step_s, 0.0)
 
 
+@dataclass
+class BcuMeasurement:
+    """What a brake control unit measures of a batch of trains at a control step, as its WSP
+    controller reads it: each axle's wheel speed from its speed sensor (m/s at the tread, (B, A)),
+    each axle's cylinder pressure (bar, (B, A)), the train's deceleration from its sensor
+    (m/s^2, (B,), positive while slowing), the brake control's own pressure demand per axle for
+    the coming step (bar, (B, A)), and the true train speed (m/s, (B,)) only for a controller that
+    is given it for comparison (``uses_train_speed``); None otherwise, as on a train."""
+
+    wheel_speed_mps: np.ndarray
+    cylinder_pressure_bar: np.ndarray
+    deceleration_mps2: np.ndarray
+    demand_bar: np.ndarray
+    train_speed_mps: np.ndarray | None = None
+
+
 class WspControl(Protocol):
-    """A WSP controller as the stops drive it (:class:`brakegym.agents.wsp.WspController`)."""
+    """A WSP controller as the stops and the environment drive it: the reference
+    (:class:`brakegym.agents.wsp.WspController`), a trained policy
+    (:func:`brakegym.agents.wsp_policy.load_wsp_controller`) or none
+    (:class:`brakegym.agents.wsp_policy.NoWsp`). ``reset`` at the first control step of a batch,
+    then ``valves`` at every step: VALVE_DUMP, VALVE_HOLD or VALVE_APPLY per valve (B, valves)."""
 
     @property
     def uses_train_speed(self) -> bool: ...
 
-    def reset(self, wheel_speed_mps: np.ndarray) -> None: ...
+    def reset(self, measurement: BcuMeasurement) -> None: ...
 
-    def valves(self, wheel_speed_mps: np.ndarray, train_speed_mps: np.ndarray | None = None) -> np.ndarray: ...
+    def valves(self, measurement: BcuMeasurement) -> np.ndarray: ...
 
 
 class _WspCommand:
@@ -71,17 +91,31 @@ class _WspCommand:
         self.command_time_s = schedule.command_time_s
         self.position_at_command_m = schedule.position_at_command_m
         self._started = False
+        self._previous_speed_mps: np.ndarray | None = None
+
+    def measurement(self, sim: AdhesionSimulator) -> BcuMeasurement:
+        """What the controller reads now: the true wheel speeds, pressures and the mean
+        deceleration of the last step (no sensor noise here: the reference's stops of the tests)."""
+        speed = sim.train[SPEED]
+        previous = speed if self._previous_speed_mps is None else self._previous_speed_mps
+        self._previous_speed_mps = speed.copy()
+        return BcuMeasurement(
+            wheel_speed_mps=sim.wheel_speed_mps.T,
+            cylinder_pressure_bar=self.pressure.pressure_bar.copy(),
+            deceleration_mps2=(previous - speed) / sim.step_s,
+            demand_bar=self.pressure.command_bar.copy(),
+            train_speed_mps=speed.copy() if self.controller.uses_train_speed else None,
+        )
 
     def __call__(self, sim: AdhesionSimulator) -> None:
         self.schedule(sim)
         if self.controller is None:
             return
-        wheels = sim.wheel_speed_mps.T
+        measurement = self.measurement(sim)
         if not self._started:
-            self.controller.reset(wheels)
+            self.controller.reset(measurement)
             self._started = True
-        train_speed = sim.train[SPEED] if self.controller.uses_train_speed else None
-        self.pressure.set_valves(self.controller.valves(wheels, train_speed))
+        self.pressure.set_valves(self.controller.valves(measurement))
 
 
 @dataclass
@@ -106,8 +140,9 @@ def wsp_train_stops(
     """Stops of ``vehicle`` as :func:`~brakegym.applications.train_stops` runs them, on the rail
     of ``adhesion``, through the WSP ``valves``, commanded by the controller
     ``make_controller(valve_of_axle, control_step_s)`` builds (e.g.
-    ``functools.partial(brakegym.agents.wsp.WspController, config)``; None: no WSP, the valves at
-    rest).
+    ``functools.partial(brakegym.agents.wsp.WspController, config)``, or
+    :func:`brakegym.agents.wsp_policy.load_wsp_controller` of a trained policy; None: no WSP, the
+    valves at rest).
 
     ``draw`` and ``running_resistance_A_N`` (B,): each stop's disc friction and running resistance
     A (e.g. from :meth:`brakegym.plants.TrainScatter.draw_for_samples`); None: nominal.

@@ -4,7 +4,9 @@
     brakegym evaluate  success rate and task metric of a controller over scattered episodes
     brakegym stress    the stress-test table per speed band, worst episodes, figure, JSON
 
-Agents are named ``pid`` (:mod:`brakegym.agents.pid` with ``configs/agents/pid.yaml``), ``ppo`` /
+Agents are named ``pid`` (:mod:`brakegym.agents.pid` with ``configs/agents/pid.yaml``), ``none`` /
+``wsp`` / ``wsp-true-speed`` (no WSP and the reference WSP, :mod:`brakegym.agents.wsp_policy`, on
+the environments with WSP valves), ``ppo`` /
 ``sac`` / ``ppo-residual`` (the policy shipped in ``brakegym.agents``' ``policies/`` for the
 environment; ``ppo-residual`` is a PPO policy that corrects the PID's command) or the path of an
 agent folder written by ``brakegym train``. ``train`` and the learned agents need the ``rl`` extra.
@@ -51,8 +53,29 @@ def _bands(text: str) -> list[float]:
 SHIPPED_AGENTS = ("ppo", "sac", "ppo-residual")
 
 
+# Agents of the environments with WSP valves (WheelSlideProtection-v0): no WSP, the reference WSP
+# on the wheel speeds, the reference given the true train speed.
+WSP_AGENTS = ("none", "wsp", "wsp-true-speed")
+
+
+def _wsp_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], Any]]:
+    from ..envs.registry import task_class
+
+    if task_class(env_id).action_kind != "valves":
+        raise UsageError(f"--agent {agent}: a WSP controller; {env_id} has no WSP valves")
+    import functools
+
+    from ..agents.wsp import WspController, load_wsp_config
+    from ..agents.wsp_policy import NoWsp, WspEnvController
+
+    make = NoWsp if agent == "none" else functools.partial(WspController, load_wsp_config(agent))
+    return agent, lambda env: WspEnvController(make, env)
+
+
 def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], Any]]:
     """(display name, factory env -> controller) for an agent argument."""
+    if agent in WSP_AGENTS:
+        return _wsp_factory(agent, env_id)
     if agent == "pid":
         from ..agents.pid import PIDController, load_pid_config
 
@@ -72,7 +95,10 @@ def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], An
     else:
         folder = Path(agent)
         if not (folder / "training.json").is_file():
-            raise UsageError(f"--agent {agent}: not pid, ppo, sac, ppo-residual or an agent folder with training.json")
+            raise UsageError(
+                f"--agent {agent}: not pid, ppo, sac, ppo-residual or an agent folder with training.json "
+                "(nor none, wsp, wsp-true-speed, the agents of an environment with WSP valves)"
+            )
     controller = PolicyController(folder)
     trained_on = "brakegym/" + controller.meta["env"]
     if trained_on != env_id:
@@ -206,7 +232,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "--agent",
         action="append",
         required=True,
-        help="pid, ppo, sac, ppo-residual or an agent folder; repeat to compare",
+        help="pid, ppo, sac, ppo-residual, none, wsp, wsp-true-speed or an agent folder; repeat to compare",
     )
     p.add_argument(
         "--bands", type=_bands, help="speed band edges in km/h, e.g. 40,60,80,100 (default: thirds of the range)"

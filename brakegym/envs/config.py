@@ -53,6 +53,26 @@ class RewardWeights(cfg.StrictModel):
     overheat: float = Field(ge=0)  # terminal penalty when a disc exceeds its limit
 
 
+class WheelRailOption(cfg.StrictModel):
+    """Wheel-rail adhesion and wheel-slide protection valves in every train (docs/adhesion.md):
+    the rail in one condition throughout (``rail_condition``, a name of
+    ``configs/rail_conditions/``) or a line of sections (``line``, a name of ``configs/lines/``),
+    exactly one of the two; the WSP valves (``wsp_valves``, a name of ``configs/wsp_valves/``); and
+    the wheel-speed sensors' Gaussian noise and resolution (the speed a reading is rounded to)."""
+
+    rail_condition: str | None = None
+    line: str | None = None
+    wsp_valves: str
+    wheel_speed_noise_mps: float = Field(ge=0)
+    wheel_speed_resolution_mps: float = Field(ge=0)
+
+    @model_validator(mode="after")
+    def _one_rail(self) -> WheelRailOption:
+        if (self.rail_condition is None) == (self.line is None):
+            raise ValueError(f"give exactly one of rail_condition ({self.rail_condition!r}) and line ({self.line!r})")
+        return self
+
+
 class BrakeEnvConfig(cfg.StrictModel):
     """What every brakegym environment shares: the train, its brake, sensors and timing."""
 
@@ -76,6 +96,9 @@ class BrakeEnvConfig(cfg.StrictModel):
     # An effect set (the name of one in configs/effects/ or a YAML path, e.g. what `brakegym
     # diagnose --effects-out` writes): physics the nominal model leaves out, in every train.
     effects: str | None = None
+    # Wheel-rail adhesion with WSP valves (the train no longer rolls perfectly); none: the paper's
+    # single mass in perfect rolling.
+    wheel_rail: WheelRailOption | None = None
 
     @model_validator(mode="after")
     def _timing(self) -> BrakeEnvConfig:
@@ -158,6 +181,18 @@ def load_environment_config(
             load_effects(env_config.effects)
         except (cfg.ConfigError, ValueError) as exc:
             raise cfg.ConfigError(f"{source}: field 'effects' = {env_config.effects!r}: {exc}") from None
+    if env_config.wheel_rail is not None:
+        option = env_config.wheel_rail
+        if env_config.effects is not None:
+            raise cfg.ConfigError(
+                f"{source}: field 'effects' = {env_config.effects!r}: effects do not run with 'wheel_rail' "
+                "(the adhesion simulator has no hooks)"
+            )
+        if option.rail_condition is not None:
+            cfg.load("rail_conditions", option.rail_condition)
+        else:
+            cfg.load("lines", option.line)
+        cfg.load("wsp_valves", option.wsp_valves)
     if env_config.instrumented_disc > vehicle.n_discs:
         raise cfg.ConfigError(
             f"{source}: field 'instrumented_disc' = {env_config.instrumented_disc}: vehicle "

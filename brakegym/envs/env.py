@@ -79,17 +79,23 @@ class BrakeCore:
         self.n = n_trains
         fleet = self.fleet
         axles = fleet.plant.n_axles
-        columns: list[tuple[str, float, float]] = [("speed_mps", -1.0, 100.0), ("decel_mps2", -10.0, 10.0)]
-        columns += [(f"pressure_bar_{axle + 1}", -1.0, 11.0) for axle in range(axles)]
-        columns += [(f"temperature_C_{disc + 1}", -100.0, 2000.0) for disc in fleet.observed_discs]
-        columns += list(self.task.extra_observations)
+        if self.task.common_observations:
+            columns: list[tuple[str, float, float]] = [("speed_mps", -1.0, 100.0), ("decel_mps2", -10.0, 10.0)]
+            columns += [(f"pressure_bar_{axle + 1}", -1.0, 11.0) for axle in range(axles)]
+            columns += [(f"temperature_C_{disc + 1}", -100.0, 2000.0) for disc in fleet.observed_discs]
+            columns += list(self.task.extra_observations)
+        else:
+            columns = self.task.observation_columns()
         self.observation_names = tuple(name for name, _, _ in columns)
         self.single_observation_space = gym.spaces.Box(
             low=np.array([low for _, low, _ in columns], dtype=np.float32),
             high=np.array([high for _, _, high in columns], dtype=np.float32),
             dtype=np.float32,
         )
-        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (fleet.n_groups,), dtype=np.float32)
+        if self.task.action_kind == "valves":
+            self.single_action_space = gym.spaces.MultiDiscrete([3] * fleet.n_valves)
+        else:
+            self.single_action_space = gym.spaces.Box(-1.0, 1.0, (fleet.n_groups,), dtype=np.float32)
         self.ended = np.ones(n_trains, dtype=bool)  # no episode running until the first reset
 
     def reset(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any] | None) -> None:
@@ -106,6 +112,10 @@ class BrakeCore:
 
     def observe(self, rng: np.random.Generator) -> np.ndarray:
         fleet = self.fleet
+        if not self.task.common_observations:
+            observation = np.empty((self.n, len(self.observation_names)))
+            self.task.measure(observation)
+            return observation.astype(np.float32)
         # One draw per channel in a fixed order, always (zero noise included), so a seed's random
         # stream does not depend on the noise settings: the sensor channels, then the distance.
         draws = rng.standard_normal((self.n, fleet.n_measured_channels + 1))
@@ -124,7 +134,7 @@ class BrakeCore:
             raise RuntimeError(
                 f"train(s) {np.flatnonzero(self.ended).tolist()} have no running episode: call reset() first"
             )
-        self.fleet.advance(actions)
+        self.task.advance_fleet(actions)
         outcome = self.task.judge()
         truncated = ~outcome.terminated & (self.fleet.time_s >= self.config.max_episode_time_s - 1e-9)
         reward = sum(outcome.reward_terms.values())

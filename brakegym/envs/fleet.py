@@ -21,9 +21,18 @@ import numpy as np
 
 from .. import config as cfg
 from ..effects import RunningResistanceEffect, apply_effects, load_effects
-from ..plants import brake_cylinder, train_plant, train_scatter
+from ..plants import (
+    brake_cylinder,
+    train_plant,
+    train_scatter,
+    valve_of_axle,
+    wheel_rail_adhesion,
+    wsp_valve,
+)
 from ..simulator import BatchConditions, CommandedPressure, Simulator
+from ..simulator.pressure import ValvedPressure
 from ..simulator.state import MU, POSITION, SPEED, T_DISC, T_FRIC
+from ..simulator.wheelsets import AdhesionSimulator
 from ..units import ZERO_CELSIUS_K, kmh_to_mps
 from .config import BrakeEnvConfig
 from .options import option_values
@@ -31,6 +40,12 @@ from .options import option_values
 # What info reports per disc, in this order: consecutive rows of the simulator's packed disc state,
 # so that one slice takes them all.
 REPORTED_DISC_STATES = slice(MU, T_DISC + 1)
+#: Episode keys are drawn below this bound (so that key + control step stays an int64 sample
+#: number of the counter-based streams, :mod:`brakegym.reliability.streams`).
+EPISODE_KEY_LIMIT = 2**62
+# Streams of the keyed episode draws of the ``wheel_rail`` fleets, the episode's initial speed, load
+# and disc temperature, and its friction scatter (TrainScatter.draw_for_samples).
+EPISODE_DRAW_STREAM, FRICTION_DRAW_STREAM = 1, 2
 if (T_FRIC, T_DISC) != (MU + 1, MU + 2):
     raise ImportError(
         f"brakegym.envs expects mu, T_fric, T_disc as consecutive disc states, not rows {MU, T_FRIC, T_DISC}"
@@ -96,6 +111,23 @@ class TrainFleet:
         self.n_groups = int(self.group_of_axle.max()) + 1
 
         self.pressure = CommandedPressure([self.cylinder] * n_trains, axles, config.physics_step_s)
+        # With wheel-rail adhesion, the cylinders sit behind WSP valves and every wheelset turns on
+        # its own; each episode then draws from its own key (see restart).
+        self.adhesion = None
+        self.valve_of_axle = np.zeros(0, dtype=np.int64)
+        self.episode_key = np.zeros(n_trains, dtype=np.int64)
+        if config.wheel_rail is not None:
+            option = config.wheel_rail
+            rail = (
+                cfg.load("rail_conditions", option.rail_condition)
+                if option.rail_condition is not None
+                else cfg.load("lines", option.line)
+            )
+            self.adhesion = wheel_rail_adhesion(self.vehicle, rail)
+            valves = cfg.load("wsp_valves", option.wsp_valves)
+            self.valve_of_axle = valve_of_axle(self.vehicle, valves)
+            self.pressure = ValvedPressure(self.pressure, wsp_valve(valves), self.valve_of_axle)
+        self.n_valves = int(self.valve_of_axle.max()) + 1 if len(self.valve_of_axle) else 0
         ambient_K = self.vehicle.ambient_temperature_C + ZERO_CELSIUS_K
         disc_shape = (n_trains, *self.nominal_plant.disc_shape)
         # Trains start at standstill until their first reset gives them a speed.
@@ -109,7 +141,13 @@ class TrainFleet:
             initial_disc_temperature_K=np.full(disc_shape, ambient_K),
             ambient_temperature_K=np.full(n_trains, ambient_K),
         )
-        if config.effects is None:
+        if self.adhesion is not None:
+            if config.effects is not None:
+                raise ValueError(f"environment {config.name!r}: effects do not run with wheel_rail")
+            self.effects = []
+            self.plant = self.nominal_plant
+            self.sim = AdhesionSimulator(self.plant, idle, self.pressure, self.adhesion, step_s=config.physics_step_s)
+        elif config.effects is None:
             self.effects: list = []
             self.plant = self.nominal_plant
             self.sim = Simulator(self.plant, idle, self.pressure, step_s=config.physics_step_s)
@@ -196,15 +234,20 @@ class TrainFleet:
         speed, load, friction scatter and disc temperatures, and release their brakes."""
         n = len(index)
         config, vehicle = self.config, self.vehicle
-        # Every draw happens whatever the options fix, so that fixing one quantity leaves the
-        # random stream (and so every other quantity) of a seed unchanged.
-        speed_kmh = rng.uniform(config.initial_speed_kmh.low, config.initial_speed_kmh.high, n)
-        load_index = rng.integers(0, len(config.loads), n)
-        temperature_C = rng.uniform(config.initial_disc_temperature_C.low, config.initial_disc_temperature_C.high, n)
         scatter = self.scatter
         if "setup" in options:
             scatter = train_scatter(vehicle, cfg.load("setups", str(options["setup"])))
-        friction, resistance_A_N = scatter.draw(rng, n)
+        if self.adhesion is None:
+            # Every draw happens whatever the options fix, so that fixing one quantity leaves the
+            # random stream (and so every other quantity) of a seed unchanged.
+            speed_kmh = rng.uniform(config.initial_speed_kmh.low, config.initial_speed_kmh.high, n)
+            load_index = rng.integers(0, len(config.loads), n)
+            temperature_C = rng.uniform(
+                config.initial_disc_temperature_C.low, config.initial_disc_temperature_C.high, n
+            )
+            friction, resistance_A_N = scatter.draw(rng, n)
+        else:
+            speed_kmh, load_index, temperature_C, friction, resistance_A_N = self._keyed_draws(index, rng, scatter)
 
         if "initial_speed_kmh" in options:
             speed_kmh = option_values(options["initial_speed_kmh"], n, "initial_speed_kmh")
@@ -276,6 +319,25 @@ class TrainFleet:
         self.overrun[index] = False
         self.started[index] = True
 
+    def _keyed_draws(self, index: np.ndarray, rng: np.random.Generator, scatter):
+        """The episode draws of a ``wheel_rail`` fleet: one key per restarted train from ``rng``,
+        then every quantity of the episode from counter-based streams of that key alone, so that
+        a train's episode is the same whatever the batch it runs in (the first key of a seed is
+        the same for a batch of 1 or of 8). The task and the sensors draw from the key too."""
+        # Imported here: scipy (which the streams need) would add to every environment's start.
+        from ..reliability.streams import derived_seed, uniforms
+
+        config = self.config
+        keys = rng.integers(0, EPISODE_KEY_LIMIT, len(index))
+        self.episode_key[index] = keys
+        u = uniforms(derived_seed(0, EPISODE_DRAW_STREAM), keys, 3)
+        speeds, temperatures = config.initial_speed_kmh, config.initial_disc_temperature_C
+        speed_kmh = speeds.low + (speeds.high - speeds.low) * u[:, 0]
+        load_index = np.minimum((u[:, 1] * len(config.loads)).astype(np.int64), len(config.loads) - 1)
+        temperature_C = temperatures.low + (temperatures.high - temperatures.low) * u[:, 2]
+        friction, resistance_A_N = scatter.draw_for_samples(derived_seed(0, FRICTION_DRAW_STREAM), keys)
+        return speed_kmh, load_index, temperature_C, friction, resistance_A_N
+
     # -------------------------------------------------------------------------------------------
     def commands_bar(self, actions: np.ndarray) -> np.ndarray:
         """Per-axle cylinder pressure commands (N, axles) from actions (N, groups) in [-1, 1]."""
@@ -301,6 +363,19 @@ class TrainFleet:
     def advance(self, actions: np.ndarray) -> None:
         """One control step: set the commands, run the physics substeps, update the measures."""
         self.pressure.set_command(self.commands_bar(actions))
+        self._run_control_step()
+
+    def advance_valves(self, command_bar: np.ndarray, valves: np.ndarray) -> None:
+        """One control step of a ``wheel_rail`` fleet: the brake control's pressure command per
+        axle (N, axles) and the WSP valve commands (N, valves), each VALVE_DUMP, VALVE_HOLD or
+        VALVE_APPLY (:mod:`brakegym.physics.pneumatics`)."""
+        if self.adhesion is None:
+            raise RuntimeError(f"environment {self.config.name!r} has no WSP valves (its config has no wheel_rail)")
+        self.pressure.set_command(command_bar)
+        self.pressure.set_valves(valves)
+        self._run_control_step()
+
+    def _run_control_step(self) -> None:
         sim = self.sim
         speed_before = sim.train[SPEED].copy()
         sim.step(self.substeps)

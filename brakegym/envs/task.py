@@ -59,8 +59,18 @@ class BrakeTask:
     metric: ClassVar[tuple[str, str]]
     #: names and (low, high) bounds of the task's observation columns, after the common ones
     extra_observations: ClassVar[tuple[tuple[str, float, float], ...]] = ()
+    #: further per-episode ``info`` keys the stress harness reports (mean, p95, largest)
+    stress_quantities: ClassVar[tuple[str, ...]] = ()
     #: reset options the task accepts besides the fleet's
     options: ClassVar[tuple[str, ...]] = ()
+    #: ``"pressure"`` when an action is a cylinder pressure per control group in [-1, 1]
+    #: (``Box``), ``"valves"`` when it is a WSP valve command per valve, 0 dump, 1 hold, 2 apply
+    #: (``MultiDiscrete``, for the fleets with ``wheel_rail``)
+    action_kind: ClassVar[str] = "pressure"
+    #: whether the observation starts with the fleet's common sensor columns; a task that
+    #: observes otherwise (a brake control unit's wheel-speed sensors) gives all its columns in
+    #: :meth:`observation_columns` and writes them in :meth:`measure`
+    common_observations: ClassVar[bool] = True
 
     def __init__(self, config: BrakeEnvConfig, fleet: TrainFleet):
         self.config = config
@@ -73,6 +83,20 @@ class BrakeTask:
     def observe(self, measured: Mapping[str, np.ndarray], out: np.ndarray) -> None:
         """Write the extra observation columns into ``out`` (N, len(extra_observations)), from
         the measured channels (:meth:`brakegym.envs.fleet.TrainFleet.measure`)."""
+
+    def observation_columns(self) -> list[tuple[str, float, float]]:
+        """Names and (low, high) bounds of the whole observation of a task without the common
+        columns (``common_observations`` False)."""
+        raise NotImplementedError(f"{type(self).__name__} observes the common columns")
+
+    def measure(self, out: np.ndarray) -> None:
+        """Write the whole observation (N, len(observation_columns())) of a task without the
+        common columns; the noise its own (the episode keys' streams)."""
+        raise NotImplementedError(f"{type(self).__name__} observes the common columns")
+
+    def advance_fleet(self, actions: np.ndarray) -> None:
+        """One control step of the fleet with the policy's ``actions`` (N, action dimensions)."""
+        self.fleet.advance(actions)
 
     def judge(self) -> Outcome:
         raise NotImplementedError
