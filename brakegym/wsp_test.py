@@ -23,9 +23,9 @@ import numpy as np
 
 from . import config as cfg
 from .applications import MAX_STOP_TIME_S, TrainApplication
-from .physics import PolachLaw, RailSections
+from .physics import PolachLaw
 from .physics.adhesion import creep
-from .plants import RAIL_ADHESION_STREAM, train_scatter, wheel_rail_adhesion
+from .plants import rail_friction_factor_for_samples, train_scatter, wheel_rail_adhesion
 from .simulator.state import MU, POSITION, SPEED
 from .simulator.wheelsets import AdhesionSimulator, WheelRailAdhesion
 from .units import STANDARD_GRAVITY_MPS2, kmh_to_mps
@@ -136,38 +136,16 @@ def load_rail(condition: str | None, line: str | None) -> cfg.RailCondition | cf
     return cfg.load("lines", line) if line is not None else cfg.load("rail_conditions", condition)
 
 
-def _conditions_of(rail: cfg.RailCondition | cfg.Line) -> list[cfg.RailCondition]:
-    if isinstance(rail, cfg.RailCondition):
-        return [rail]
-    return [cfg.load("rail_conditions", section.rail_condition) for section in rail.sections]
-
-
-def rail_adhesion_normal(seed: int) -> float:
-    """The standard normal of a seeded test's rail adhesion: sample 0 of the seed's rail stream."""
-    from .reliability.streams import derived_seed, standard_normals
-
-    return float(standard_normals(derived_seed(seed, RAIL_ADHESION_STREAM), np.zeros(1, dtype=np.int64), 1)[0, 0])
-
-
-def scattered_adhesion(
-    vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line, normal: float | None
-) -> WheelRailAdhesion:
-    """The adhesion option of ``vehicle`` on ``rail``; with a standard ``normal``, every
-    section's mu_0 times exp(sigma normal), sigma its condition's
-    ``static_friction_relative_sigma`` (one draw for the whole line: the same day's rail)."""
+def seeded_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line, seed: int | None) -> WheelRailAdhesion:
+    """The adhesion option of ``vehicle`` on ``rail``; with a ``seed``, the rail's mu_0 scaled by
+    the factor a campaign seeded so draws for its stop 0
+    (:func:`~brakegym.plants.rail_friction_factor_for_samples`: lognormal, mean 1, one factor for
+    a whole line, the same day's rail)."""
     adhesion = wheel_rail_adhesion(vehicle, rail)
-    if normal is None:
+    if seed is None:
         return adhesion
-    conditions = _conditions_of(rail)
-    sections = adhesion.law if isinstance(adhesion.law, RailSections) else RailSections((0.0,), (adhesion.law,))
-    laws = tuple(
-        dataclasses.replace(
-            law, static_friction=law.static_friction * float(np.exp(c.static_friction_relative_sigma * normal))
-        )
-        for law, c in zip(sections.laws, conditions)
-    )
-    law = laws[0] if isinstance(adhesion.law, PolachLaw) else RailSections(sections.starts_m, laws)
-    return dataclasses.replace(adhesion, law=law)
+    factor = rail_friction_factor_for_samples(rail, seed, np.zeros(1, dtype=np.int64))
+    return dataclasses.replace(adhesion, static_friction_factor=(float(factor[0]),))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -176,10 +154,16 @@ def scattered_adhesion(
 
 class PeakAdhesionTable:
     """The peak F / Q of each rail section's law over the train speed (0 to a little above
-    ``max_speed_mps``) at one wheel load, interpolated linearly in speed."""
+    ``max_speed_mps``) at one wheel load, interpolated linearly in speed; of one train's rail
+    (its ``static_friction_factor`` on every section's mu_0)."""
 
     def __init__(self, adhesion: WheelRailAdhesion, n_axles: int, wheel_load_N: float, max_speed_mps: float):
         starts, parameters, offsets = adhesion.rail_table(n_axles)
+        factors = adhesion.static_friction_factor
+        if factors is not None and len(factors) != 1:
+            raise ValueError(f"static_friction_factor {factors}: the table is of one train's rail, give one factor")
+        parameters = parameters.copy()
+        parameters[:, 0] *= 1.0 if factors is None else factors[0]
         self.starts_m, self.axle_offsets_m = starts, offsets
         self.speeds_mps = np.linspace(0.0, 1.05 * max_speed_mps + 1.0, _PEAK_TABLE_POINTS)
         stiffness = adhesion.contact.creep_stiffness_N(wheel_load_N)
@@ -296,7 +280,7 @@ class WspTraces:
         speed, position = sim.train[SPEED].copy(), sim.train[POSITION].copy()
         wheels = sim.wheel_speed_mps.copy()  # (A, B)
         axle_load_N = 2.0 * sim.wheel_load_N  # (B,)
-        law = sim.adhesion.law_at(position)
+        law = sim.rail_law_at(position)
         used = sim.creep_force_N(speed, wheels, law) / axle_load_N
         available = self.table.peak(speed, self.table.section_of(position))
         supply = np.asarray(getattr(sim.pressure, "supply_bar", sim.pressure.pressure_bar), dtype=float)
@@ -367,7 +351,7 @@ def wsp_test(
     Without ``seed`` the nominal stop; with it, the discs' friction and the running resistance
     drawn as sample 0 of a campaign seeded ``seed`` in the set-up ``setup``
     (:meth:`~brakegym.plants.TrainScatter.draw_for_samples`) and the rail's mu_0 from the seed's
-    rail stream (:func:`scattered_adhesion`); both stops share the draw."""
+    rail stream (:func:`seeded_adhesion`); both stops share the stream."""
     if not (np.isfinite(v0_kmh) and v0_kmh > 0):
         raise ValueError(f"v0 = {v0_kmh} km/h: must be a positive speed")
     vehicle = cfg.load("vehicles", vehicle_name)
@@ -380,11 +364,10 @@ def wsp_test(
 
     scatter_setup = cfg.load("setups", setup)  # checked even when unused: a bad name is a mistake
     if seed is None:
-        draw, resistance_A_N, normal = None, np.array([vehicle.running_resistance.A_N]), None
+        draw, resistance_A_N = None, np.array([vehicle.running_resistance.A_N])
     else:
         scatter = train_scatter(vehicle, scatter_setup)
         draw, resistance_A_N = scatter.draw_for_samples(seed, np.zeros(1, dtype=np.int64))
-        normal = rail_adhesion_normal(seed)
     application = [TrainApplication(load, TEST_BRAKE_MODE, TEST_ACTUATION, float(v0_kmh))]
     command_time_s = application[0].command_time_s
     v0_mps = kmh_to_mps(v0_kmh)
@@ -406,9 +389,9 @@ def wsp_test(
         )
         return stops, traces, table
 
-    adhesion = scattered_adhesion(vehicle, rail, normal)
+    adhesion = seeded_adhesion(vehicle, rail, seed)
     test, traces, table = stop(adhesion)
-    reference, dry_traces, _ = stop(scattered_adhesion(vehicle, dry, normal))
+    reference, dry_traces, _ = stop(seeded_adhesion(vehicle, dry, seed))
     dry_trace = dry_traces.arrays()
 
     distance_m = float(test.summary.braking_distance_m[0])
@@ -438,9 +421,7 @@ def wsp_test(
         "v0_kmh": float(v0_kmh),
         "seed": seed,
         "scatter_setup": setup if seed is not None else None,
-        "rail_static_friction_factor": None
-        if normal is None
-        else [float(np.exp(c.static_friction_relative_sigma * normal)) for c in _conditions_of(rail)],
+        "rail_static_friction_factor": None if seed is None else adhesion.static_friction_factor[0],
         "brake_mode": TEST_BRAKE_MODE,
         "actuation": TEST_ACTUATION,
         "control_step_s": control_step_s,
