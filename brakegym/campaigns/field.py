@@ -86,6 +86,25 @@ def scattered_train_stops(
     return train_stops(vehicle, applications, draw, resistance, step_s), draw, resistance
 
 
+def field_stop_columns(
+    stop: np.ndarray, repetitions: int, running_resistance_A_N: np.ndarray, summary: StopSummary
+) -> dict[str, np.ndarray]:
+    """The :data:`STOP_COLUMNS` of the field campaign's stops ``stop`` (their sample indices, of
+    ``repetitions`` repetitions per field application), run with ``running_resistance_A_N``."""
+    return {
+        "stop": stop,
+        "field_application": stop // repetitions,
+        "repetition": stop % repetitions,
+        "running_resistance_A_N": running_resistance_A_N,
+        "stop_time_s": summary.stop_time_s,
+        "stop_distance_m": summary.stop_distance_m,
+        "braking_distance_m": summary.braking_distance_m,
+        "mu_s_eff": summary.mu_s_eff,
+        "mu_s_mean": summary.mean_mu_s,
+        "T_fric_max_C": summary.peak_temperature_C,
+    }
+
+
 @dataclass(frozen=True)
 class FieldChunkTask:
     """The stops of a chunk of a field campaign, from the seed and the stops' numbers alone."""
@@ -103,19 +122,7 @@ class FieldChunkTask:
         summary, _, resistance = scattered_train_stops(
             self.vehicle, [self.applications[a] for a in application], self.setup, self.seed, stop, self.step_s
         )
-        columns = {
-            "stop": stop,
-            "field_application": application,
-            "repetition": stop % self.repetitions,
-            "running_resistance_A_N": resistance,
-            "stop_time_s": summary.stop_time_s,
-            "stop_distance_m": summary.stop_distance_m,
-            "braking_distance_m": summary.braking_distance_m,
-            "mu_s_eff": summary.mu_s_eff,
-            "mu_s_mean": summary.mean_mu_s,
-            "T_fric_max_C": summary.peak_temperature_C,
-        }
-        return {STOPS: columns}
+        return {STOPS: field_stop_columns(stop, self.repetitions, resistance, summary)}
 
 
 @dataclass

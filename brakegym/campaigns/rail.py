@@ -34,7 +34,7 @@ from ..plants import (
 from ..units import STANDARD_GRAVITY_MPS2
 from ..wheel_slide import DEFAULT_CONTROL_STEP_S, wsp_train_stops
 from .chunks import Chunk, even_chunks, run_chunks
-from .field import STOP_COLUMNS, STOPS, FieldCampaignResult, field_applications, field_manifest
+from .field import STOP_COLUMNS, STOPS, FieldCampaignResult, field_applications, field_manifest, field_stop_columns
 from .store import CampaignStore
 
 #: The columns a rail campaign's stops add to the field campaign's (one row per stop).
@@ -105,16 +105,7 @@ class RailFieldChunkTask:
         summary, locked = stops.summary, stops.locked
         static_friction, peak = self._rail_of_stops(apps, factor)
         columns = {
-            "stop": stop,
-            "field_application": application,
-            "repetition": stop % self.repetitions,
-            "running_resistance_A_N": resistance,
-            "stop_time_s": summary.stop_time_s,
-            "stop_distance_m": summary.stop_distance_m,
-            "braking_distance_m": summary.braking_distance_m,
-            "mu_s_eff": summary.mu_s_eff,
-            "mu_s_mean": summary.mean_mu_s,
-            "T_fric_max_C": summary.peak_temperature_C,
+            **field_stop_columns(stop, self.repetitions, resistance, summary),
             "rail_friction_factor": factor,
             "rail_static_friction": static_friction,
             "rail_peak_adhesion": peak,
