@@ -33,7 +33,7 @@ from brakegym.plants import (
     wheel_rail_contact,
 )
 from brakegym.simulator import CommandedPressure, kernel, wheelset_kernel
-from brakegym.simulator.state import FRICTION_HEAT, POSITION, SPEED
+from brakegym.simulator.state import ANGULAR_SPEED, FRICTION_HEAT, POSITION, SPEED
 from brakegym.simulator.wheelsets import DEFAULT_MAX_SUBSTEP_S, AdhesionSimulator, WheelRailAdhesion
 from brakegym.simulator.wheelsets_reference import NumpyAdhesionSimulator
 from brakegym.units import STANDARD_GRAVITY_MPS2
@@ -531,3 +531,41 @@ def test_deceleration_is_the_rail_forces_over_the_body_mass():
     )
     with pytest.raises(ValueError, match="wheel_speed_mps"):
         sim.deceleration_at_mps2(sim.disc, train, moving, sim.pressure.pressure_bar)
+
+
+@pytest.mark.parametrize("simulator_class", [AdhesionSimulator, NumpyAdhesionSimulator], ids=["compiled", "numpy"])
+def test_trains_with_locked_wheels_near_standstill_stop_and_no_wheel_overtakes_them(simulator_class):
+    """Dry rail, the WSP's 20 ms step, trains at walking pace with every wheel locked (as after a
+    low-adhesion patch): with the emergency brake applied or with every cylinder vented, the
+    rail's force brings each wheel back to the train's speed and no further (nothing drives a
+    wheel faster than the train when no traction acts), and the train stops within the time the
+    running resistance A alone takes, v0 m / A (the brake only shortens it)."""
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    plant = train_plant(vehicle)
+    initial_speed_mps = np.array([0.02, 0.3, 1.4, 0.02, 0.3, 1.4])
+    n_trains = initial_speed_mps.size
+    mass_kg = vehicle.mass_kg("empty")
+    conditions = train_conditions(
+        vehicle,
+        mass_kg=np.full(n_trains, mass_kg),
+        initial_speed_mps=initial_speed_mps,
+        draw=nominal_draw(cfg.load("materials", vehicle.material), n_trains, plant.disc_shape),
+        running_resistance_A_N=np.full(n_trains, vehicle.running_resistance.A_N),
+    )
+    step_s = 0.02
+    pressure = CommandedPressure([brake_cylinder(cfg.load("pneumatics", "EP"))] * n_trains, plant.n_axles, step_s)
+    braked = np.arange(n_trains) < 3
+    command_bar = np.where(braked, vehicle.brake_pressure_bar("emergency", "empty"), 0.0)
+    pressure.set_command(np.repeat(command_bar[:, None], plant.n_axles, axis=1))
+    sim = simulator_class(plant, conditions, pressure, _adhesion("dry"), step_s=step_s)
+    sim.wheelset[ANGULAR_SPEED] = 0.0
+    limit_s = initial_speed_mps.max() * mass_kg / vehicle.running_resistance.A_N + 2.0
+    largest_overspeed_mps = 0.0
+    while sim.moving.any() and sim.time_s < limit_s:
+        sim.step()
+        overspeed = (sim.wheel_speed_mps - sim.train[SPEED])[:, sim.moving]
+        largest_overspeed_mps = max(largest_overspeed_mps, float(overspeed.max(initial=0.0)))
+    assert not sim.moving.any(), f"still moving at {sim.time_s:.1f} s: {sim.train[SPEED]} m/s"
+    assert largest_overspeed_mps < 1e-3
+    # The braked trains stop within seconds, far sooner than on the running resistance alone.
+    assert np.all(sim.stop_time_s[braked] < 5.0)

@@ -204,9 +204,30 @@ def _creep_forces(
 
 
 @numba.njit(**JIT_OPTIONS)
+def _implicit_slope_N(slope_N, force_N, brake_N, speed_mps, wheel_speed_mps, scaled_speed_mps, mass_kg, delta_s):
+    """The creep slope an axle's implicit substep takes: dF/ds at fixed friction, raised to the
+    secant F / s where the wheel, moving towards the train's speed, would cross it within the
+    substep (the train's speed held). Far out on the creep curve the tangent is next to flat and
+    cannot see F change sign at s = 0: the substep then carries the wheel across the train's speed
+    and the next one back, and near standstill the wheels chatter about the train instead of
+    stopping it. With the secant the linearised force is zero no later than at s = 0."""
+    slip = speed_mps - wheel_speed_mps
+    s = slip / scaled_speed_mps
+    rate = (force_N - brake_N) / mass_kg
+    if s != 0.0 and rate * s > 0.0:
+        change = delta_s * rate / (1.0 + delta_s * slope_N / (scaled_speed_mps * mass_kg))
+        if (slip - change) * slip < 0.0:
+            secant = force_N / s
+            if secant > slope_N:
+                return secant
+    return slope_N
+
+
+@numba.njit(**JIT_OPTIONS)
 def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delta_s, scheme, loads, constants, out):
     """One linearly implicit Euler substep of one train: (I - delta J) dy = delta f(y) with the
-    arrow Jacobian of the creep forces' slope at fixed friction, solved by its Schur complement.
+    arrow Jacobian of the creep forces' slope (:func:`_implicit_slope_N`), solved by its Schur
+    complement.
     New wheel speeds into ``out`` (A,), a wheel that would turn backwards held at 0 (locked by its
     brake); returns the new train speed."""
     regularisation, wheelset_mass = scheme[REGULARISATION_SPEED_MPS], scheme[WHEELSET_MASS_KG]
@@ -218,7 +239,16 @@ def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delt
     resistance_slope = constants[RESISTANCE_B_N_PER_MPS] + 2.0 * constants[RESISTANCE_C_N_PER_MPS2] * speed_mps
     force_sum, slope_sum, schur_sum, rate_sum = 0.0, 0.0, 0.0, 0.0
     for axle in range(out.shape[0]):
-        slope = slope_N[axle]
+        slope = _implicit_slope_N(
+            slope_N[axle],
+            force_N[axle],
+            brake_N[axle],
+            speed_mps,
+            wheel_speed_mps[axle],
+            scaled,
+            wheelset_mass,
+            delta_s,
+        )
         # ds/dv: 1 / v_reg below the regularisation speed, u / v^2 above it.
         per_speed = wheel_speed_mps[axle] / (scaled * scaled) if speed_mps > regularisation else 1.0 / scaled
         wheel_rate = (force_N[axle] - brake_N[axle]) / wheelset_mass
@@ -234,7 +264,16 @@ def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delt
     schur = 1.0 - delta_s * train_by_train - (delta_s * delta_s) * schur_sum
     train_change = (delta_s * train_rate + (delta_s * delta_s) * rate_sum) / schur
     for axle in range(out.shape[0]):
-        slope = slope_N[axle]
+        slope = _implicit_slope_N(
+            slope_N[axle],
+            force_N[axle],
+            brake_N[axle],
+            speed_mps,
+            wheel_speed_mps[axle],
+            scaled,
+            wheelset_mass,
+            delta_s,
+        )
         per_speed = wheel_speed_mps[axle] / (scaled * scaled) if speed_mps > regularisation else 1.0 / scaled
         wheel_rate = (force_N[axle] - brake_N[axle]) / wheelset_mass
         wheel_by_train = slope * per_speed / wheelset_mass

@@ -200,11 +200,20 @@ class NumpyAdhesionSimulator(AdhesionSimulator):
     ) -> tuple[np.ndarray, np.ndarray]:
         """One linearly implicit Euler substep of the wheel speeds u (A, B) and the train speed v
         (B,): (I - delta J) dy = delta f(y). The Jacobian J is the arrow of the creep forces'
-        slope at fixed friction (the falling friction, slow, stays explicit); a wheel that would
+        slope at fixed friction (the falling friction, slow, stays explicit), raised to the secant
+        F / s where the wheel would cross the train's speed within the substep; a wheel that would
         turn backwards is locked by its brake (u = 0)."""
         plant, adhesion = self.plant, self.adhesion
         force, slope = self._creep_force_and_slope(speed_mps, wheel_speed_mps, law)
         scaled_speed = np.maximum(speed_mps, adhesion.regularisation_speed_mps)
+        # Where the wheel, moving towards the train's speed, would cross it within the substep, the
+        # slope is raised to the secant F / s (the kernel's _implicit_slope_N says why).
+        slip = speed_mps - wheel_speed_mps
+        s = slip / scaled_speed
+        rate = (force - brake_force_N) / self.wheelset_mass_kg
+        change = delta_s * rate / (1.0 + delta_s * slope / (scaled_speed * self.wheelset_mass_kg))
+        crossing = (s != 0.0) & (rate * s > 0.0) & ((slip - change) * slip < 0.0)
+        slope = np.where(crossing, np.maximum(slope, force / np.where(crossing, s, 1.0)), slope)
         # ds/dv: 1 / v_reg below the regularisation speed, u / v^2 above it.
         creep_per_speed = np.where(
             speed_mps > adhesion.regularisation_speed_mps, wheel_speed_mps / scaled_speed**2, 1.0 / scaled_speed
