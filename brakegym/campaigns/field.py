@@ -89,7 +89,7 @@ def scattered_train_stops(
 def field_stop_columns(
     stop: np.ndarray, repetitions: int, running_resistance_A_N: np.ndarray, summary: StopSummary
 ) -> dict[str, np.ndarray]:
-    """The :data:`STOP_COLUMNS` of the field campaign's stops ``stop`` (their sample indices, of
+    """The ``STOP_COLUMNS`` of the field campaign's stops ``stop`` (their sample indices, of
     ``repetitions`` repetitions per field application), run with ``running_resistance_A_N``."""
     return {
         "stop": stop,
