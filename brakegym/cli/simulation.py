@@ -209,6 +209,15 @@ def _field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> d
             f"{row.brake_mode:<10} {row.v0_kmh:4.0f} {mu:13.4f} {100 * row.mu_s_eff_std / mu:9.2f} "
             f"{distance:18.1f} {100 * row.braking_distance_m_std / distance:9.2f}"
         )
+    return {
+        **_field_outputs(args, setup, result),
+        "field_applications": summary.to_dict(orient="records"),
+    }
+
+
+def _field_outputs(args: argparse.Namespace, setup: cfg.ScatterSetup, result) -> dict[str, object]:
+    """A field campaign's ``--figures`` and ``--csv``, written; the JSON keys every field campaign
+    reports."""
     if args.figures:
         from ..campaigns import figures
 
@@ -222,7 +231,6 @@ def _field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor) -> d
         "seed": args.seed,
         "step_s": args.step,
         "applications": result.n_stops,
-        "field_applications": summary.to_dict(orient="records"),
     }
 
 
@@ -281,19 +289,8 @@ def _rail_field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor)
         f"slide energy {rows['slide_energy_MJ'].mean():.2f} MJ (mean), stops with an axle locked over "
         f"{LOCKED_STOP_S} s: {locked_stops}"
     )
-    if args.figures:
-        from ..campaigns import figures
-
-        paths = figures.field_campaign_figures(result, Path(args.figures))
-        print("figures: " + ", ".join(str(p) for p in paths))
-    if args.csv:
-        result.write_csv(args.csv)
     return {
-        "campaign": "field",
-        "setup": setup.name,
-        "seed": args.seed,
-        "step_s": args.step,
-        "applications": result.n_stops,
+        **_field_outputs(args, setup, result),
         "rail": rail.name,
         "rail_kind": "condition" if args.condition else "line",
         "wsp": wsp_name if wsp is None or wsp_name == "reference" else wsp.name,
