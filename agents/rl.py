@@ -35,6 +35,10 @@ algorithm and fail):
     jerk term is linear in ``|jerk|`` and so only penalises the total variation of the deceleration).
     Applied to the evaluation trains of the training run too, so that the kept checkpoint is the
     best on the objective trained for.
+``warm_start``
+    ``{teacher: wsp, ...}``: before training, the policy is fitted to a teacher controller's
+    commands and its value to the returns of the teacher's episodes, and the normaliser takes
+    their statistics (behaviour cloning, :mod:`brakegym.agents.warm_start`).
 """
 
 from __future__ import annotations
@@ -57,7 +61,15 @@ ALGORITHMS = ("ppo", "sac", "ppo-residual")
 # Keys of an entry that configure the run rather than the algorithm (rl_zoo3 takes them too).
 ZOO_SETUP_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
 # brakegym's own keys, allowed only in the file's ``brakegym`` section.
-BRAKEGYM_KEYS = ("eval_freq_steps", "n_eval_episodes", "env_config", "residual", "jerk_shaping", "kernel_threads")
+BRAKEGYM_KEYS = (
+    "eval_freq_steps",
+    "n_eval_episodes",
+    "env_config",
+    "residual",
+    "jerk_shaping",
+    "kernel_threads",
+    "warm_start",
+)
 OWN_SECTION = "brakegym"
 
 
@@ -324,6 +336,18 @@ def train(
         norm_obs=normalize.get("norm_obs", True),
     )
     model = _model_class(algo)(hyper["policy"], venv, seed=seed, verbose=0, device="cpu", **algo_kwargs)
+    warm_start = None
+    if hyper.get("warm_start"):
+        if residual or hyper.get("jerk_shaping"):
+            raise cfg.ConfigError(f"{short_env_id(env_id)}: warm_start does not combine with residual or jerk_shaping")
+        from .warm_start import WarmStartConfig, collect_demonstrations
+        from .warm_start import warm_start as fit_to_teacher
+
+        warm_config = WarmStartConfig.model_validate(hyper["warm_start"])
+        warm_started = time.monotonic()
+        demonstrations = collect_demonstrations(env_id, n_envs, seed + 20_000, setup, training_env_config, warm_config)
+        warm_start = fit_to_teacher(model, venv, demonstrations, warm_config, seed)
+        warm_start["wall_time_s"] = round(time.monotonic() - warm_started, 1)
     callbacks = [
         EvalCallback(
             eval_env,
@@ -364,6 +388,8 @@ def train(
     }
     if residual:
         meta["residual"] = {**residual, "pid_gains": pid_gains.model_dump()}
+    if warm_start:
+        meta["warm_start"] = warm_start
     (out / "training.json").write_text(json.dumps(meta, indent=2))
     best = out / "best"
     if (best / "best_model.zip").is_file():

@@ -12,6 +12,7 @@ The same controller thus runs the environment's scattered episodes and the deter
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from collections.abc import Callable
 from importlib.resources.abc import Traversable
@@ -108,6 +109,25 @@ def load_wsp_controller(agent_dir: str | Path | Traversable) -> Callable[[np.nda
         return PolicyWsp(folder, valve_of_axle, control_step_s)
 
     return make_controller
+
+
+#: The WSP controllers an environment with WSP valves runs by name: no WSP, the reference WSP on
+#: the wheel speeds (``configs/agents/wsp.yaml``), the reference given the true train speed.
+WSP_AGENTS = ("none", "wsp", "wsp-true-speed")
+
+
+def wsp_env_controller_factory(agent: str, env_id: str) -> Callable[[Any], WspEnvController]:
+    """A factory (environment -> :class:`WspEnvController`) of the WSP controller named ``agent``
+    (one of :data:`WSP_AGENTS`) for the environment ``env_id``, which must have WSP valves."""
+    from ..envs.registry import task_class
+    from .wsp import WspController, load_wsp_config
+
+    if agent not in WSP_AGENTS:
+        raise ValueError(f"{agent!r}: not a WSP controller ({', '.join(WSP_AGENTS)})")
+    if task_class(env_id).action_kind != "valves":
+        raise ValueError(f"{agent}: a WSP controller; {env_id} has no WSP valves")
+    make = NoWsp if agent == "none" else functools.partial(WspController, load_wsp_config(agent))
+    return lambda env: WspEnvController(make, env)
 
 
 class WspEnvController:

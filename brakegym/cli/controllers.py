@@ -53,29 +53,15 @@ def _bands(text: str) -> list[float]:
 SHIPPED_AGENTS = ("ppo", "sac", "ppo-residual")
 
 
-# Agents of the environments with WSP valves (WheelSlideProtection-v0): no WSP, the reference WSP
-# on the wheel speeds, the reference given the true train speed.
-WSP_AGENTS = ("none", "wsp", "wsp-true-speed")
-
-
-def _wsp_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], Any]]:
-    from ..envs.registry import task_class
-
-    if task_class(env_id).action_kind != "valves":
-        raise UsageError(f"--agent {agent}: a WSP controller; {env_id} has no WSP valves")
-    import functools
-
-    from ..agents.wsp import WspController, load_wsp_config
-    from ..agents.wsp_policy import NoWsp, WspEnvController
-
-    make = NoWsp if agent == "none" else functools.partial(WspController, load_wsp_config(agent))
-    return agent, lambda env: WspEnvController(make, env)
-
-
 def controller_factory(agent: str, env_id: str) -> tuple[str, Callable[[Any], Any]]:
     """(display name, factory env -> controller) for an agent argument."""
+    from ..agents.wsp_policy import WSP_AGENTS, wsp_env_controller_factory
+
     if agent in WSP_AGENTS:
-        return _wsp_factory(agent, env_id)
+        try:
+            return agent, wsp_env_controller_factory(agent, env_id)
+        except ValueError as error:
+            raise UsageError(f"--agent {error}") from None
     if agent == "pid":
         from ..agents.pid import PIDController, load_pid_config
 
