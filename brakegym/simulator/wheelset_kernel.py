@@ -229,7 +229,8 @@ def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delt
     arrow Jacobian of the creep forces' slope (:func:`_implicit_slope_N`), solved by its Schur
     complement.
     New wheel speeds into ``out`` (A,), a wheel that would turn backwards held at 0 (locked by its
-    brake); returns the new train speed."""
+    brake); returns the new train speed. Between its two passes over the axles ``out`` holds each
+    axle's slope, so that the substep neither allocates nor computes a slope twice."""
     regularisation, wheelset_mass = scheme[REGULARISATION_SPEED_MPS], scheme[WHEELSET_MASS_KG]
     body_mass = loads[BODY_MASS_KG]
     scaled = max(speed_mps, regularisation)
@@ -255,6 +256,7 @@ def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delt
         wheel_by_train = slope * per_speed / wheelset_mass
         train_by_wheel = slope / (scaled * body_mass)
         pivot = 1.0 - delta_s * (-slope / (scaled * wheelset_mass))
+        out[axle] = slope  # kept for the second pass, which overwrites it with the wheel speed
         force_sum += force_N[axle]
         slope_sum += slope * per_speed
         schur_sum += train_by_wheel * wheel_by_train / pivot
@@ -264,16 +266,7 @@ def _implicit_update(speed_mps, wheel_speed_mps, brake_N, force_N, slope_N, delt
     schur = 1.0 - delta_s * train_by_train - (delta_s * delta_s) * schur_sum
     train_change = (delta_s * train_rate + (delta_s * delta_s) * rate_sum) / schur
     for axle in range(out.shape[0]):
-        slope = _implicit_slope_N(
-            slope_N[axle],
-            force_N[axle],
-            brake_N[axle],
-            speed_mps,
-            wheel_speed_mps[axle],
-            scaled,
-            wheelset_mass,
-            delta_s,
-        )
+        slope = out[axle]
         per_speed = wheel_speed_mps[axle] / (scaled * scaled) if speed_mps > regularisation else 1.0 / scaled
         wheel_rate = (force_N[axle] - brake_N[axle]) / wheelset_mass
         wheel_by_train = slope * per_speed / wheelset_mass
