@@ -218,10 +218,26 @@ def _wrappers():
             excess = np.maximum(self.fleet.jerk_mps3 - self.above_mps3, 0.0)
             return observation, (reward - self.weight * excess).astype(np.float32), dones, infos
 
-    return ResidualPID, JerkShaping
+    class RepeatEpisodes(VecEnvWrapper):
+        """Every reset starts the same episodes (those of ``seed``): the evaluation trains of a
+        training run, so that its checkpoints are compared on one set of trains rather than on
+        draws whose initial speeds alone move the return by more than training does."""
+
+        def __init__(self, venv: Any, seed: int):
+            self.episode_seed = int(seed)
+            super().__init__(venv)
+
+        def reset(self):
+            self.venv.seed(self.episode_seed)
+            return self.venv.reset()
+
+        def step_wait(self):
+            return self.venv.step_wait()
+
+    return ResidualPID, JerkShaping, RepeatEpisodes
 
 
-def _vec_env(
+def sb3_training_env(
     env_id: str,
     n_envs: int,
     seed: int,
@@ -230,18 +246,23 @@ def _vec_env(
     residual: dict[str, Any] | None = None,
     pid_gains: Any = None,
     jerk_shaping: dict[str, Any] | None = None,
+    repeat_episodes: bool = False,
 ):
+    """The batched environment as SB3 trains on it; with ``repeat_episodes`` every reset starts
+    the episodes of ``seed`` again (the evaluation trains)."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     from ..envs.sb3 import SB3VecEnv
 
-    ResidualPID, JerkShaping = _wrappers()
+    ResidualPID, JerkShaping, RepeatEpisodes = _wrappers()
     venv = SB3VecEnv(make_vector_env(env_id, n_envs, setup, env_config, autoreset=True))
     if residual:
         venv = ResidualPID(venv, pid_gains, float(residual["scale"]))
     if jerk_shaping:
         venv = JerkShaping(venv, **jerk_shaping)
     venv = VecMonitor(venv)
+    if repeat_episodes:
+        return RepeatEpisodes(venv, seed)
     venv.seed(seed)
     return venv
 
@@ -321,15 +342,16 @@ def train(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
 
-    venv = VecNormalize(_vec_env(env_id, n_envs, seed, setup, training_env_config, **wrapping), **normalize)
+    venv = VecNormalize(sb3_training_env(env_id, n_envs, seed, setup, training_env_config, **wrapping), **normalize)
     eval_env = VecNormalize(
-        _vec_env(
+        sb3_training_env(
             env_id,
             min(int(hyper.get("n_eval_episodes", 64)), 128),
             seed + 10_000,
             setup,
             training_env_config,
             **wrapping,
+            repeat_episodes=True,
         ),
         training=False,
         norm_reward=False,
@@ -340,7 +362,10 @@ def train(
     if hyper.get("warm_start"):
         if residual or hyper.get("jerk_shaping"):
             raise cfg.ConfigError(f"{short_env_id(env_id)}: warm_start does not combine with residual or jerk_shaping")
-        from .warm_start import WarmStartConfig, collect_demonstrations
+        from stable_baselines3.common.evaluation import evaluate_policy
+        from stable_baselines3.common.vec_env import sync_envs_normalization
+
+        from .warm_start import WarmStartConfig, collect_demonstrations, teacher_return
         from .warm_start import warm_start as fit_to_teacher
 
         warm_config = WarmStartConfig.model_validate(hyper["warm_start"])
@@ -348,6 +373,12 @@ def train(
         demonstrations = collect_demonstrations(env_id, n_envs, seed + 20_000, setup, training_env_config, warm_config)
         warm_start = fit_to_teacher(model, venv, demonstrations, warm_config, seed)
         warm_start["wall_time_s"] = round(time.monotonic() - warm_started, 1)
+        # Where training starts from, on the evaluation trains its checkpoints are judged on.
+        sync_envs_normalization(venv, eval_env)
+        warm_start["eval_reward"] = round(
+            float(evaluate_policy(model, eval_env, n_eval_episodes=eval_env.num_envs)[0]), 3
+        )
+        warm_start["teacher_eval_reward"] = round(teacher_return(eval_env, env_id, warm_config.teacher), 3)
     callbacks = [
         EvalCallback(
             eval_env,

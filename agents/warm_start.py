@@ -96,6 +96,23 @@ def collect_demonstrations(
     return Demonstrations(**{name: np.concatenate(values) for name, values in parts.items()})
 
 
+def teacher_return(eval_env: Any, env_id: str, teacher: str) -> float:
+    """The teacher's mean return over one episode of each train of ``eval_env`` (an SB3 VecEnv
+    over a brakegym environment, whose rewards it reads unnormalised): the evaluation trains of a
+    training run, against which its checkpoints are judged."""
+    inner = eval_env.unwrapped.env
+    controller = wsp_env_controller_factory(teacher, env_id)(inner)
+    observation = eval_env.reset()
+    controller.reset({})
+    finished = np.zeros(eval_env.num_envs, dtype=bool)
+    returns = np.zeros(eval_env.num_envs)
+    while not finished.all():
+        observation, reward, dones, _ = eval_env.step(controller.act(observation))
+        returns += np.where(finished, 0.0, eval_env.get_original_reward())
+        finished |= dones
+    return float(returns.mean())
+
+
 def discounted_returns(rewards: np.ndarray, episode: np.ndarray, step: np.ndarray, gamma: float) -> np.ndarray:
     """Each sample's discounted return to the end of its episode (the episode ends at its last
     sample: a standstill or the time limit, which the value then reads as an end)."""

@@ -190,3 +190,17 @@ def test_shipped_residual_policy_stops_on_the_mark_with_lower_jerk_than_the_pid(
     assert result.success.mean() >= 0.99
     assert np.median(np.abs(result.metric)) < 0.1
     assert np.percentile(result.peak_jerk_mps3, 95) < np.percentile(pid.peak_jerk_mps3, 95) - 0.15
+
+
+def test_the_evaluation_trains_of_a_training_run_are_the_same_at_every_evaluation():
+    """The evaluation callback resets its environment before each evaluation; its trains must be
+    the same each time, so that checkpoints are compared on one set of trains."""
+    from brakegym.agents.rl import sb3_training_env
+
+    evaluation = sb3_training_env("brakegym/StationStop-v0", 4, 10_000, "mcs-75-25", None, repeat_episodes=True)
+    first = evaluation.reset()
+    evaluation.step(np.zeros((4, evaluation.action_space.shape[0]), dtype=np.float32))
+    np.testing.assert_array_equal(evaluation.reset(), first)
+    training = sb3_training_env("brakegym/StationStop-v0", 4, 10_000, "mcs-75-25", None)
+    np.testing.assert_array_equal(training.reset(), first)
+    assert not np.array_equal(training.reset(), first)  # training draws new trains at each reset
