@@ -98,7 +98,7 @@ def collect_demonstrations(
 
 def teacher_return(eval_env: Any, env_id: str, teacher: str) -> float:
     """The teacher's mean return over one episode of each train of ``eval_env`` (an SB3 VecEnv
-    over a brakegym environment, whose rewards it reads unnormalised): the evaluation trains of a
+    over a brakegym environment whose rewards are not normalised): the evaluation trains of a
     training run, against which its checkpoints are judged."""
     inner = eval_env.unwrapped.env
     controller = wsp_env_controller_factory(teacher, env_id)(inner)
@@ -108,7 +108,7 @@ def teacher_return(eval_env: Any, env_id: str, teacher: str) -> float:
     returns = np.zeros(eval_env.num_envs)
     while not finished.all():
         observation, reward, dones, _ = eval_env.step(controller.act(observation))
-        returns += np.where(finished, 0.0, eval_env.get_original_reward())
+        returns += np.where(finished, 0.0, reward)
         finished |= dones
     return float(returns.mean())
 

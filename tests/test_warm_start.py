@@ -84,3 +84,22 @@ def test_cloning_sets_the_normaliser_and_makes_the_policy_agree_with_the_teacher
     most_frequent_share = counts.max(axis=1).sum() / demonstrations.actions.size
     assert done["teacher_agreement"] == pytest.approx(agreement(), abs=1e-4)
     assert done["teacher_agreement"] > most_frequent_share + 0.05
+
+
+def test_the_teachers_return_on_the_evaluation_trains_is_that_of_its_episodes():
+    from brakegym.agents.rl import sb3_training_env
+    from brakegym.agents.warm_start import teacher_return
+    from brakegym.agents.wsp_policy import wsp_env_controller_factory
+    from brakegym.envs import BrakeVectorEnv
+
+    evaluation = sb3_training_env(ENV_ID, 2, 9, "mcs-75-25", SLOW, repeat_episodes=True)
+    env = BrakeVectorEnv(ENV_ID, num_envs=2, config={**SLOW, "setup": "mcs-75-25"}, autoreset=False)
+    teacher = wsp_env_controller_factory("wsp", ENV_ID)(env)
+    observation, info = env.reset(seed=9)
+    teacher.reset(info)
+    returns = np.zeros(2)
+    while not env.ended.all():
+        braking = ~env.ended
+        observation, reward, *_ = env.step(teacher.act(observation))
+        returns += np.where(braking, reward, 0.0)
+    assert teacher_return(evaluation, ENV_ID, "wsp") == pytest.approx(returns.mean(), rel=1e-6)
