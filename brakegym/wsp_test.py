@@ -42,6 +42,10 @@ DRY_CONDITION = "dry"
 WSP_CONFIGS = {"reference": "wsp", "reference-true-speed": "wsp-true-speed"}
 #: The WSP name for no WSP (the valves at rest).
 NO_WSP = "none"
+#: The WSP name of the PPO policy shipped for ``WheelSlideProtection-v0``, and its folder in
+#: ``brakegym.agents``' ``policies/``.
+SHIPPED_POLICY = "ppo"
+SHIPPED_POLICY_FOLDER = "wheel_slide_protection_ppo"
 #: The test's brake application, the emergency brake through the EP brake control.
 TEST_BRAKE_MODE = "emergency"
 TEST_ACTUATION = "EP"
@@ -91,10 +95,25 @@ class WspChoice:
     make_controller: Callable | None
 
 
+def _agents_module(wsp: str, name: str):
+    """``brakegym.agents.<name>``, which a trained policy needs, or an error naming the ``--wsp``
+    that asked for it."""
+    try:
+        return importlib.import_module(f"brakegym.agents.{name}")
+    except ModuleNotFoundError as error:
+        if error.name != f"brakegym.agents.{name}":
+            raise
+        raise cfg.ConfigError(
+            f"--wsp {wsp}: read as a trained WSP policy; policies need brakegym.agents.{name}, "
+            "which this installation lacks"
+        ) from None
+
+
 def resolve_wsp(spec: str | Path) -> WspChoice:
-    """``none``, ``reference`` (``configs/agents/wsp.yaml``), ``reference-true-speed``, a YAML
-    file of the reference controller's kind (:class:`brakegym.agents.wsp.WspControllerConfig`), or
-    a trained policy folder (loaded by ``brakegym.agents.wsp_policy.load_wsp_controller``)."""
+    """``none``, ``reference`` (``configs/agents/wsp.yaml``), ``reference-true-speed``, ``ppo``
+    (the policy shipped for ``WheelSlideProtection-v0``), a YAML file of the reference controller's
+    kind (:class:`brakegym.agents.wsp.WspControllerConfig`), or a trained policy folder (loaded by
+    ``brakegym.agents.wsp_policy.load_wsp_controller``)."""
     text = str(spec)
     if text == NO_WSP:
         return WspChoice(NO_WSP, None)
@@ -103,24 +122,20 @@ def resolve_wsp(spec: str | Path) -> WspChoice:
     if text in WSP_CONFIGS:
         config = reference.load_wsp_config(WSP_CONFIGS[text])
         return WspChoice(text, functools.partial(reference.WspController, config))
+    if text == SHIPPED_POLICY:
+        folder = _agents_module(text, "rl").shipped_policies().joinpath(SHIPPED_POLICY_FOLDER)
+        if not folder.joinpath("training.json").is_file():
+            raise cfg.ConfigError(f"--wsp {text}: this installation ships no WSP policy ({folder})")
+        return WspChoice(SHIPPED_POLICY, _agents_module(text, "wsp_policy").load_wsp_controller(folder))
     path = Path(text)
     if path.is_dir():
-        try:
-            policy = importlib.import_module("brakegym.agents.wsp_policy")
-        except ModuleNotFoundError as error:
-            if error.name != "brakegym.agents.wsp_policy":
-                raise
-            raise cfg.ConfigError(
-                f"--wsp {text}: a folder, read as a trained WSP policy; policy folders need "
-                "brakegym.agents.wsp_policy, which this installation lacks"
-            ) from None
-        return WspChoice(str(path), policy.load_wsp_controller(path))
+        return WspChoice(str(path), _agents_module(text, "wsp_policy").load_wsp_controller(path))
     if path.suffix in (".yaml", ".yml"):
         if not path.is_file():
             raise cfg.ConfigError(f"--wsp {text}: no such file")
         config = reference.load_wsp_config(path)
         return WspChoice(str(path), functools.partial(reference.WspController, config))
-    known = ", ".join([NO_WSP, *WSP_CONFIGS])
+    known = ", ".join([NO_WSP, *WSP_CONFIGS, SHIPPED_POLICY])
     raise cfg.ConfigError(f"--wsp {text!r}: not a WSP name ({known}), a controller YAML file or a policy folder")
 
 

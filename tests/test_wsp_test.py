@@ -211,7 +211,7 @@ def test_a_policy_folder_goes_to_the_policy_loader(tmp_path, monkeypatch):
     try:
         import brakegym.agents.wsp_policy  # noqa: F401
     except ModuleNotFoundError:
-        with pytest.raises(cfg.ConfigError, match="policy folders need brakegym.agents.wsp_policy"):
+        with pytest.raises(cfg.ConfigError, match="policies need brakegym.agents.wsp_policy"):
             resolve_wsp(tmp_path)
     loaded = []
     module = types.ModuleType("brakegym.agents.wsp_policy")
@@ -227,3 +227,15 @@ def test_controller_yaml_of_the_reference_kind(tmp_path):
     path.write_text(source)
     choice = resolve_wsp(path)
     assert choice.label == str(path) and choice.make_controller is not None
+
+
+def test_the_shipped_ppo_policy_stops_shorter_than_the_reference_with_no_more_slide_energy():
+    """Issue 16's bar for the shipped policy, on the WSP test's case: emu_8axle empty, emergency
+    from 120 km/h on the low rail, nominal friction."""
+    reports = {
+        wsp: wsp_test("emu_8axle", "empty", 120.0, wsp, condition="low").as_json() for wsp in ("reference", "ppo")
+    }
+    assert reports["ppo"]["wsp"] == "ppo"
+    assert reports["ppo"]["stop_distance_m"] < reports["reference"]["stop_distance_m"]
+    assert reports["ppo"]["slide_energy_MJ"] <= reports["reference"]["slide_energy_MJ"]
+    assert reports["ppo"]["max_locked_time_s"] <= 1.0  # the environment's success bound

@@ -77,8 +77,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--wsp",
         required=True,
-        help="none, reference (configs/agents/wsp.yaml), reference-true-speed, a controller YAML of the "
-        "reference kind, or a trained policy folder",
+        help="none, reference (configs/agents/wsp.yaml), reference-true-speed, ppo (the shipped PPO policy), "
+        "a controller YAML of the reference kind, or a trained policy folder",
     )
     p.add_argument("--v0", type=finite_positive("--v0"), required=True, help="speed at the brake command, km/h")
     p.add_argument(
