@@ -111,8 +111,8 @@ def load_wsp_controller(agent_dir: str | Path | Traversable) -> Callable[[np.nda
     return make_controller
 
 
-#: The WSP controllers an environment with WSP valves runs by name: no WSP, the reference WSP on
-#: the wheel speeds (``configs/agents/wsp.yaml``), the reference given the true train speed.
+#: Names of the WSP controllers that an environment with WSP valves runs (no WSP, the reference
+#: WSP on the wheel speeds of ``configs/agents/wsp.yaml``, the reference given the true speed).
 WSP_AGENTS = ("none", "wsp", "wsp-true-speed")
 
 
