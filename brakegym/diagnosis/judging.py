@@ -19,11 +19,11 @@ replaces it by the same rules, judged against the single: the pair must lower th
 ``select_delta_bic`` below the single's and remove held-out error consistently over the recordings
 the second effect acts on (of the passing pairs, the one with the lowest held-out error). The pairs
 include those of the forward step (:mod:`.pipeline`): the selected single with the effects that
-screen best on top of it. A pair whose second effect is relevant, that lowers the BIC below the
-single's by ``select_delta_bic`` and whose held-out error is within ``indistinguishable_heldout``
-of the single's or lower, but not consistently over the recordings (it fails the held-out t), is
-named indistinguishable from the single (``single_or_pair``), with the measurement that would
-separate the two effects. Another passing single is named indistinguishable from the selected
+screen best on top of it. A pair that does not replace the single, but whose second effect is
+relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
+and that passes one of the two rules against the single (a BIC lower by ``select_delta_bic``, or
+the held-out t) is named indistinguishable from the single (``single_or_pair``), with the
+measurement that would separate the two effects. Another passing single is named indistinguishable from the selected
 one when its held-out error is within ``indistinguishable_heldout`` and either its BIC is within
 ``similar_bic`` or the recordings do not tell the two held-out errors apart (paired t below
 ``heldout_min_t``): in large data two confounders' BICs can differ by hundreds while neither
@@ -174,15 +174,20 @@ class Judge:
 
     def _pair_as_good(self, single: Candidate, pair: Candidate) -> bool:
         """Whether ``pair`` (judged against ``single`` by :meth:`beats`, and not passing) explains
-        the data as well as the single: relevant, a BIC lower by ``select_delta_bic``, and a
-        held-out error within ``indistinguishable_heldout`` of the single's or lower, that the
-        recordings do not confirm."""
+        the data as well as the single, by one of the two rules but not both: relevant, a held-out
+        error within ``indistinguishable_heldout`` of the single's or lower, and either a BIC lower
+        than the single's by ``select_delta_bic`` or a held-out t of ``heldout_min_t`` over the
+        recordings the second effect acts on."""
         rules = self.rules
         single_sse = float(np.sum(single.heldout.sse))
+        t = pair.report.get("heldout_t")
         return (
             pair.relevant
-            and pair.delta_bic - single.delta_bic < rules.select_delta_bic
             and float(np.sum(pair.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * single_sse
+            and (
+                pair.delta_bic - single.delta_bic < rules.select_delta_bic
+                or (t is not None and t >= rules.heldout_min_t)
+            )
         )
 
     def _indistinguishable(

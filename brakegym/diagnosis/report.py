@@ -228,10 +228,10 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
         for entry in report["indistinguishable_single_or_pair"]:
             second = next(e for e in entry["pair"] if e not in entry["single"])
             text += (
-                f" The pair {' + '.join(entry['pair'])} fits as well (BIC lower by "
-                f"{-entry['delta_bic_over_single']:.0f}) but the recordings held out do not confirm {second} "
-                f"consistently: {' + '.join(entry['single'])} alone or with {second} would be separated by "
-                f"{entry['separating_measurement']}."
+                f" The pair {' + '.join(entry['pair'])} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} "
+                f"and held-out t {entry['heldout_t_over_single']} against {' + '.join(entry['single'])} alone), "
+                f"but not by every rule: {' + '.join(entry['single'])} alone or with {second} would be "
+                f"separated by {entry['separating_measurement']}."
             )
         return text
     if report["unexplained"]:
