@@ -152,8 +152,7 @@ class Diagnoser:
             {c.effect_ids[0] for c in singles},
             judge.chi2_base,
         )
-        if single is not None and self.rules.forward_pairs > 0:
-            report["forward_screening"] = forward_screening_entry(single, forward)
+        report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
@@ -280,7 +279,8 @@ def _free_names(problem: FitProblem, effect_id: str, fixed: dict[str, float]) ->
 
 def forward_screening_entry(single: Candidate, screened: dict[str, ScreenedPoint]) -> dict[str, Any]:
     """The report's account of the forward step: each other effect's profiled effective chi^2 on
-    top of the selected single, best first, against the single's own."""
+    top of the selected single, best first, against the single's own (the key is None without a
+    selected single)."""
     return {
         "given": list(single.effect_ids),
         "chi2_eff_given": round(float(single.chi2_eff), 1),
