@@ -44,3 +44,31 @@ def test_names_a_gradient_and_a_running_resistance_on_mixed_loads(tmp_path):
     assert len(forward["given"]) == 1 and forward["given"][0] in report["selected"]
     (second,) = [e for e in report["selected"] if e not in forward["given"]]
     assert forward["chi2_eff_profiled"][second] < forward["chi2_eff_given"]
+
+
+def test_names_a_friction_level_under_a_speed_sensor_scale(tmp_path):
+    # The recordings' friction factors absorb most of a friction level, and a speed-sensor scale
+    # takes the unmodified model's chi^2 down so far that the level never screens among the best
+    # singles: only screened on top of the scale does it show. The pair is selected, or named
+    # indistinguishable from the scale alone with what would separate them.
+    mu_scale = 1.10
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=11,
+        effects=[
+            EffectRequest("friction_level", {"mu_scale": mu_scale}),
+            EffectRequest("speed_sensor_scale", {"scale": 0.97}),
+        ],
+    )
+    report = diagnose(result.folder).report
+    pair = ["friction_level", "speed_sensor_scale"]
+    if report["selected"] == pair:
+        fitted = report["parameters"]["mu_scale"]
+    else:
+        assert report["selected"] == ["speed_sensor_scale"], report["summary"]
+        entry = next(e for e in report["indistinguishable_single_or_pair"] if e["pair"] == pair)
+        assert entry["separating_measurement"]
+        assert "friction_level" in report["summary"]
+        fitted = entry["pair_parameters"]["mu_scale"]
+    assert abs(fitted - mu_scale) <= FRICTION_LEVEL_TOLERANCE, fitted
