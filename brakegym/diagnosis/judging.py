@@ -23,10 +23,12 @@ screen best on top of it. A pair that does not replace the single, but whose sec
 relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
 and that passes one of the two rules against the single (a BIC lower by ``select_delta_bic``, or
 the held-out t) is named indistinguishable from the single (``single_or_pair``), with the
-measurement that would separate the two effects. Another passing single is named indistinguishable from the selected
-one when its held-out error is within ``indistinguishable_heldout`` and either its BIC is within
-``similar_bic`` or the recordings do not tell the two held-out errors apart (paired t below
-``heldout_min_t``): in large data two confounders' BICs can differ by hundreds while neither
+measurement that would separate the two effects.
+
+Another passing single is named indistinguishable from the selected one when its held-out error
+is within ``indistinguishable_heldout`` and either its BIC is within ``similar_bic`` or the
+recordings do not tell the two held-out errors apart (paired t below ``heldout_min_t``): in large
+data two confounders' BICs can differ by hundreds while neither
 predicts a held-out recording better. A relevant single with a BIC gain that acts on at most
 ``unconfirmed_max_recordings`` recordings and removes ``unconfirmed_min_gain`` of their held-out
 error is reported unconfirmed (a t over one or two recordings is no evidence of consistency).

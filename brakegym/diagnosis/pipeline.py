@@ -24,8 +24,8 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
    the selected single only when it beats the single by the same rules.
 8. **Report** parameters with 95 % intervals, residuals before and after, candidates the data
    cannot tell apart (two singles, or the selected single and a pair with it) and what would
-   separate them, and with no effect selected but a residual
-   beyond noise, a data-driven description of what is unexplained (:mod:`.report`).
+   separate them, and with no effect selected but a residual beyond noise, a data-driven
+   description of what is unexplained (:mod:`.report`).
 
 The thresholds are :class:`.rules.DiagnosisRules`; what the diagnosis needs to know of each effect
 its class says (:class:`brakegym.effects.Effect`). ``docs/diagnosis.md`` describes the method and
