@@ -28,10 +28,10 @@ measurement that would separate the two effects.
 Another passing single is named indistinguishable from the selected one when its held-out error
 is within ``indistinguishable_heldout`` and either its BIC is within ``similar_bic`` or the
 recordings do not tell the two held-out errors apart (paired t below ``heldout_min_t``): in large
-data two confounders' BICs can differ by hundreds while neither
-predicts a held-out recording better. A relevant single with a BIC gain that acts on at most
-``unconfirmed_max_recordings`` recordings and removes ``unconfirmed_min_gain`` of their held-out
-error is reported unconfirmed (a t over one or two recordings is no evidence of consistency).
+data two confounders' BICs can differ by hundreds while neither predicts a held-out recording
+better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
+recordings and removes ``unconfirmed_min_gain`` of their held-out error is reported unconfirmed (a
+t over one or two recordings is no evidence of consistency).
 The thresholds are :class:`.rules.DiagnosisRules`.
 """
 
