@@ -198,6 +198,8 @@ def run_set(
         "ci95": chosen["ci95"] if chosen else {},
         "indistinguishable": report["indistinguishable"],
         "signature_correlations": report["signature_correlations"],
+        # A pair with the selected single that the data do not tell from it (not in the judging).
+        "single_or_pair": [entry["pair"] for entry in report.get("indistinguishable_single_or_pair", [])],
         "unconfirmed": [u["effects"] for u in report["unconfirmed"]],
         "unexplained": report["unexplained"] is not None,
         "hit": bool(hit),

@@ -285,6 +285,8 @@ def test_cli_on_an_effect_free_set_selects_nothing_and_writes_the_keys(tmp_path,
         "selected",
         "parameters",
         "indistinguishable",
+        "indistinguishable_single_or_pair",
+        "forward_screening",
         "unexplained",
         "summary",
     ):
@@ -295,6 +297,8 @@ def test_cli_on_an_effect_free_set_selects_nothing_and_writes_the_keys(tmp_path,
     assert report["noise"]["T_disc_C"] == pytest.approx(1.0, rel=0.15)
     assert report["recordings"] == 5
     assert report["selected"] == [] and report["unexplained"] is None and report["unconfirmed"] == []
+    # No single selected: no forward step, no pair named against one.
+    assert report["forward_screening"] is None and report["indistinguishable_single_or_pair"] == []
     assert not report["mismatch"]["significant"]
     for candidate in report["candidates"]:
         assert {

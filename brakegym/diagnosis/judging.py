@@ -15,13 +15,23 @@ A candidate is selected when
 - its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`).
 
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
-replaces it by the same rules. Another passing single is named indistinguishable from the selected
-one when its held-out error is within ``indistinguishable_heldout`` and either its BIC is within
-``similar_bic`` or the recordings do not tell the two held-out errors apart (paired t below
-``heldout_min_t``): in large data two confounders' BICs can differ by hundreds while neither
-predicts a held-out recording better. A relevant single with a BIC gain that acts on at most
-``unconfirmed_max_recordings`` recordings and removes ``unconfirmed_min_gain`` of their held-out
-error is reported unconfirmed (a t over one or two recordings is no evidence of consistency).
+replaces it by the same rules, judged against the single: the pair must lower the BIC by
+``select_delta_bic`` below the single's and remove held-out error consistently over the recordings
+the second effect acts on (of the passing pairs, the one with the lowest held-out error). The pairs
+include those of the forward step (:mod:`.pipeline`): the selected single with the effects that
+screen best on top of it. A pair that does not replace the single, but whose second effect is
+relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
+and that passes one of the two rules against the single (a BIC lower by ``select_delta_bic``, or
+the held-out t) is named indistinguishable from the single (``single_or_pair``), with the
+measurement that would separate the two effects.
+
+Another passing single is named indistinguishable from the selected one when its held-out error
+is within ``indistinguishable_heldout`` and either its BIC is within ``similar_bic`` or the
+recordings do not tell the two held-out errors apart (paired t below ``heldout_min_t``): in large
+data two confounders' BICs can differ by hundreds while neither predicts a held-out recording
+better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
+recordings and removes ``unconfirmed_min_gain`` of their held-out error is reported unconfirmed (a
+t over one or two recordings is no evidence of consistency).
 The thresholds are :class:`.rules.DiagnosisRules`.
 """
 
@@ -66,6 +76,8 @@ class Verdict:
     indistinguishable: list[list[str]]  # [selected, other] effect id pairs
     signature_correlations: dict[str, float]  # "selected / other": how alike their corrections are
     unconfirmed: list[Candidate]
+    #: (selected single, pair with it) the data cannot tell apart
+    single_or_pair: list[tuple[Candidate, Candidate]] = field(default_factory=list)
 
 
 class Judge:
@@ -127,25 +139,58 @@ class Judge:
             and t >= rules.heldout_min_t
         )
 
-    def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
-        """Select among ``singles`` and ``pairs`` (see the module documentation)."""
+    def best_single(self, singles: Sequence[Candidate]) -> Candidate | None:
+        """The passing single with the lowest held-out error (None: none passes); marks each
+        single's ``passes``."""
         base_residual = self.baseline.residual
         for candidate in singles:
             candidate.passes = self.beats(candidate, 0.0, self.base_sse, base_residual)
         passing = [c for c in singles if c.passes]
-        selected = min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
-        if selected is not None:
-            for pair in pairs:
-                if selected.effect_ids[0] in pair.effect_ids and self.beats(
-                    pair, selected.delta_bic, selected.heldout.sse, selected.heldout.residual
-                ):
-                    if float(np.sum(pair.heldout.sse)) < float(np.sum(selected.heldout.sse)):
-                        selected = pair
+        return min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
+
+    def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
+        """Select among ``singles`` and ``pairs`` (see the module documentation)."""
+        single = self.best_single(singles)
+        passing = [c for c in singles if c.passes]
+        selected = single
+        single_or_pair: list[tuple[Candidate, Candidate]] = []
+        if single is not None:
+            # Every pair with the single is judged against the single itself, not against a pair
+            # that replaced it earlier in the loop.
+            with_single = [pair for pair in pairs if single.effect_ids[0] in pair.effect_ids]
+            better = [
+                pair
+                for pair in with_single
+                if self.beats(pair, single.delta_bic, single.heldout.sse, single.heldout.residual)
+                and float(np.sum(pair.heldout.sse)) < float(np.sum(single.heldout.sse))
+            ]
+            if better:
+                selected = min(better, key=lambda c: float(np.sum(c.heldout.sse)))
+            else:
+                single_or_pair = [(single, pair) for pair in with_single if self._pair_as_good(single, pair)]
         else:
             for pair in pairs:
-                self.beats(pair, 0.0, self.base_sse, base_residual)
+                self.beats(pair, 0.0, self.base_sse, self.baseline.residual)
         indistinguishable, correlations = self._indistinguishable(selected, passing)
-        return Verdict(selected, indistinguishable, correlations, self._unconfirmed(selected, singles))
+        return Verdict(selected, indistinguishable, correlations, self._unconfirmed(selected, singles), single_or_pair)
+
+    def _pair_as_good(self, single: Candidate, pair: Candidate) -> bool:
+        """Whether ``pair`` (judged against ``single`` by :meth:`beats`, and not passing) explains
+        the data as well as the single, by one of the two rules but not both: relevant, a held-out
+        error within ``indistinguishable_heldout`` of the single's or lower, and either a BIC lower
+        than the single's by ``select_delta_bic`` or a held-out t of ``heldout_min_t`` over the
+        recordings the second effect acts on."""
+        rules = self.rules
+        single_sse = float(np.sum(single.heldout.sse))
+        t = pair.report.get("heldout_t")
+        return (
+            pair.relevant
+            and float(np.sum(pair.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * single_sse
+            and (
+                pair.delta_bic - single.delta_bic < rules.select_delta_bic
+                or (t is not None and t >= rules.heldout_min_t)
+            )
+        )
 
     def _indistinguishable(
         self, selected: Candidate | None, passing: Sequence[Candidate]

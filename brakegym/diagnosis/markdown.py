@@ -131,6 +131,11 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
         f"{name} (corrections correlate {report['signature_correlations'][name]:.2f})"
         for name in (" / ".join(pair) for pair in report["indistinguishable"])
     )
+    single_or_pair = [
+        f"{' + '.join(entry['single'])} / {' + '.join(entry['pair'])}"
+        for entry in report.get("indistinguishable_single_or_pair", [])
+    ]
+    indistinguishable = "; ".join(filter(None, [indistinguishable, *single_or_pair]))
     parts = [
         f"# Diagnosis of `{dataset_name}`",
         "",

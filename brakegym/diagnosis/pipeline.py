@@ -14,10 +14,18 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
 5. **Fit** the best ``top_singles`` effects in full from their best screened points (only those
    whose screening beats the unmodified model), and the pairs of the best ``pairs_from``.
-6. **Judge** them by BIC, held-out error and physical relevance (:mod:`.judging`).
-7. **Report** parameters with 95 % intervals, residuals before and after, candidates the data
-   cannot tell apart and what would separate them, and with no effect selected but a residual
-   beyond noise, a data-driven description of what is unexplained (:mod:`.report`).
+6. **Forward step**: with a single selected by the rules of :mod:`.judging`, every other effect is
+   screened again on top of it (its parameters held, the nuisance refitted from its fit), and the
+   best ``forward_pairs`` of those that gain on it are fitted in full as pairs with it. A second
+   effect is often hidden in the unmodified model's residual by the first one's (a friction level
+   under a running resistance 30 times its imprint), so neither the screening against the
+   unmodified model nor the pairs of the best singles reach it.
+7. **Judge** them by BIC, held-out error and physical relevance (:mod:`.judging`); a pair replaces
+   the selected single only when it beats the single by the same rules.
+8. **Report** parameters with 95 % intervals, residuals before and after, candidates the data
+   cannot tell apart (two singles, or the selected single and a pair with it) and what would
+   separate them, and with no effect selected but a residual beyond noise, a data-driven
+   description of what is unexplained (:mod:`.report`).
 
 The thresholds are :class:`.rules.DiagnosisRules`; what the diagnosis needs to know of each effect
 its class says (:class:`brakegym.effects.Effect`). ``docs/diagnosis.md`` describes the method and
@@ -125,6 +133,11 @@ class Diagnoser:
         screened = screening.run()
         singles = self._fit_singles(screening, screened, judge, baseline)
         pairs = self._fit_pairs(singles, judge)
+        single = judge.best_single(singles)
+        forward: dict[str, ScreenedPoint] = {}
+        if single is not None and self.rules.forward_pairs > 0:
+            forward_pairs, forward = self._forward_pairs(single, pairs, judge, evidence)
+            pairs += forward_pairs
         verdict = judge.verdict(singles, pairs)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
         report = build_report(
@@ -139,6 +152,7 @@ class Diagnoser:
             {c.effect_ids[0] for c in singles},
             judge.chi2_base,
         )
+        report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
@@ -193,6 +207,44 @@ class Diagnoser:
             pairs.append(judge.candidate(ids, fit))
         return pairs
 
+    def _forward_pairs(
+        self, single: Candidate, pairs: Sequence[Candidate], judge: Judge, evidence: Evidence
+    ) -> tuple[list[Candidate], dict[str, ScreenedPoint]]:
+        """The forward step on the rest: every other effect screened on top of the selected
+        ``single`` (its parameters held), and the best ``forward_pairs`` of those whose screening
+        beats the single by ``screen_min_gain`` fitted in full as pairs with it, from its
+        parameters and the screened point's (an integer parameter's neighbours too, as for the
+        singles). Pairs already among ``pairs`` are not fitted again. Returns the new pairs and
+        the screened points."""
+        problem, rules = self.problem, self.rules
+        given = Screening(problem, judge.weighting, rules, evidence, self.n_discs, single.fit)
+        screened = given.run()
+        (selected_id,) = single.effect_ids
+        fitted = {frozenset(pair.effect_ids) for pair in pairs}
+        order = sorted(screened, key=lambda e: screened[e].chi2)
+        promising = [
+            e
+            for e in order
+            if screened[e].chi2 < single.chi2_eff - rules.screen_min_gain and frozenset((selected_id, e)) not in fitted
+        ]
+        new_pairs = []
+        for effect_id in promising[: rules.forward_pairs]:
+            point = screened[effect_id]
+            ids = tuple(sorted((selected_id, effect_id), key=list(EFFECTS).index))
+            fits = []
+            for fixed, nuisance in [(point.fixed, point.nuisance)] + [
+                (neighbour, given.starts(effect_id, neighbour, point.theta[None])[0])
+                for neighbour in integer_neighbours(effect_id, point.fixed)
+            ]:
+                held = {**single.fit.fixed, **fixed}
+                values = {**single.fit.parameters, **dict(zip(_free_names(problem, effect_id, fixed), point.theta))}
+                free = problem.free_parameters(list(ids), held)
+                start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
+                fits.append(problem.fit(list(ids), start, fixed=held, max_iterations=rules.fit_iterations))
+            fit = min(fits, key=lambda f: judge.weighting.chi2(f.residual))
+            new_pairs.append(judge.candidate(ids, fit))
+        return new_pairs, screened
+
     def _locate(
         self, weighting: Weighting, baseline: FitResult, selected: Candidate | None, significant_anyway: bool
     ) -> tuple[dict[str, Any], dict[str, Any] | None]:
@@ -218,6 +270,25 @@ class Diagnoser:
             "attribution_eta2": shares,
         }
         return mismatch, unexplained
+
+
+def _free_names(problem: FitProblem, effect_id: str, fixed: dict[str, float]) -> list[str]:
+    """The names of ``effect_id``'s free parameters with ``fixed`` held, in the screening's order."""
+    return [parameter.name for parameter in problem.free_parameters([effect_id], fixed)]
+
+
+def forward_screening_entry(single: Candidate, screened: dict[str, ScreenedPoint]) -> dict[str, Any]:
+    """The report's account of the forward step: each other effect's profiled effective chi^2 on
+    top of the selected single, best first, against the single's own (the key is None without a
+    selected single)."""
+    return {
+        "given": list(single.effect_ids),
+        "chi2_eff_given": round(float(single.chi2_eff), 1),
+        "chi2_eff_profiled": {
+            effect_id: round(float(screened[effect_id].chi2), 1)
+            for effect_id in sorted(screened, key=lambda e: screened[e].chi2)
+        },
+    }
 
 
 def diagnose(

@@ -124,6 +124,7 @@ def build_report(
             " / ".join(pair): separating_measurement(*pair) for pair in verdict.indistinguishable
         },
         "signature_correlations": verdict.signature_correlations,
+        "indistinguishable_single_or_pair": [_single_or_pair_entry(a, b) for a, b in verdict.single_or_pair],
         "unconfirmed": [_unconfirmed_entry(c) for c in verdict.unconfirmed],
         "unexplained": unexplained["text"] if unexplained else None,
         "unexplained_fit": unexplained,
@@ -137,6 +138,22 @@ def build_report(
     }
     report["summary"] = _summary(report, selected)
     return report
+
+
+def _single_or_pair_entry(single: Candidate, pair: Candidate) -> dict[str, Any]:
+    """A pair with the selected single that the data cannot tell from the single alone, and what
+    would: the measurement that separates the single's effect from the pair's second one."""
+    (first,) = single.effect_ids
+    (second,) = [e for e in pair.effect_ids if e != first]
+    return {
+        "single": list(single.effect_ids),
+        "pair": list(pair.effect_ids),
+        "pair_parameters": {k: round(v, 5) for k, v in pair.fit.parameters.items()},
+        "delta_bic_over_single": round(pair.delta_bic - single.delta_bic, 1),
+        "heldout_gain_over_single": pair.report.get("heldout_gain"),
+        "heldout_t_over_single": pair.report.get("heldout_t"),
+        "separating_measurement": separating_measurement(first, second),
+    }
 
 
 def _unconfirmed_entry(candidate: Candidate) -> dict[str, Any]:
@@ -208,6 +225,14 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
                 for a, b in report["indistinguishable"]
             )
             text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
+        for entry in report["indistinguishable_single_or_pair"]:
+            second = next(e for e in entry["pair"] if e not in entry["single"])
+            text += (
+                f" The pair {' + '.join(entry['pair'])} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} "
+                f"and held-out t {entry['heldout_t_over_single']} against {' + '.join(entry['single'])} alone), "
+                f"but not by every rule: {' + '.join(entry['single'])} alone or with {second} would be "
+                f"separated by {entry['separating_measurement']}."
+            )
         return text
     if report["unexplained"]:
         verdict = "is confirmed on held-out recordings" if report["unconfirmed"] else "explains it"

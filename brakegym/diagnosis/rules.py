@@ -76,6 +76,9 @@ class DiagnosisRules:
     top_singles: int = 3
     #: pairs are fitted among this many best singles
     pairs_from: int = 2
+    #: in the forward step, this many effects, those that screen best on top of the selected
+    #: single, are fitted as pairs with it (0 turns the forward step off)
+    forward_pairs: int = 2
     #: iterations of a candidate's full fit
     fit_iterations: int = 8
 

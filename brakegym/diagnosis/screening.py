@@ -7,6 +7,11 @@ of an effect simulated in one batch, each point's nuisance (initial speed, initi
 temperature, friction factor of every recording) refitted by chord iterations
 (:meth:`.fitting.FitProblem.chord_refit`). The best point of each effect is then refined by one
 profiled Gauss-Newton step: a grid this coarse leaves a small effect between two points.
+
+Screened against a fit with effects (``given``: the selected single of the forward step), every
+other effect is tried on top of that fit's effects, their parameters held at its values and each
+point's nuisance refitted from its nuisance: a second effect whose imprint the first one's
+residual hides in the unmodified model's residual shows there.
 """
 
 from __future__ import annotations
@@ -58,7 +63,8 @@ def integer_neighbours(effect_id: str, fixed: dict[str, float]) -> list[dict[str
 
 
 class Screening:
-    """Screens the effects against the unmodified model's fit ``baseline``."""
+    """Screens the effects against the fit ``baseline``: the unmodified model's, or with effects
+    (a selected single), on top of which the others are then tried with its parameters held."""
 
     def __init__(
         self,
@@ -71,7 +77,17 @@ class Screening:
     ) -> None:
         self.problem, self.weighting, self.rules = problem, weighting, rules
         self.evidence, self.n_discs, self.baseline = evidence, n_discs, baseline
-        self.profile: NuisanceProfile = problem.profiler(baseline.jacobian[:, : 3 * problem.n])
+        n_given = len(baseline.free)
+        #: the effects of ``baseline`` and all their parameters, held in every screened point
+        self.given_ids: tuple[str, ...] = tuple(baseline.effect_ids)
+        self.given_parameters: dict[str, float] = baseline.parameters
+        self.profile: NuisanceProfile = problem.profiler(baseline.jacobian[:, n_given : n_given + 3 * problem.n])
+
+    def _with_given(self, effect_id: str, fixed: dict[str, float]) -> tuple[list[str], dict[str, float]]:
+        """The effect ids of a screened point (the given effects with ``effect_id``, in the
+        library's order) and its held parameters."""
+        ids = sorted({*self.given_ids, effect_id}, key=list(EFFECTS).index)
+        return ids, {**self.given_parameters, **fixed}
 
     def starts(self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray) -> np.ndarray:
         """The nuisance each point (rows of ``thetas``) starts from: the unmodified model's, with
@@ -82,7 +98,7 @@ class Screening:
         n = self.problem.n
         lower, upper = self.problem.nuisance_bounds()
         names = [parameter.name for parameter in self.problem.free_parameters([effect_id], fixed)]
-        starts = np.tile(self.baseline.x, (len(thetas), 1))
+        starts = np.tile(self.baseline.x[len(self.baseline.free) :], (len(thetas), 1))
         for j, theta in enumerate(thetas):
             parameters = {**dict(zip(names, theta)), **fixed}
             starts[j, 2 * n :] /= EFFECTS[effect_id].brake_force_share(parameters, self.n_discs)
@@ -92,10 +108,11 @@ class Screening:
         self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray, nuisances: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Profiled effective chi^2 of each point (rows of ``thetas``) and its refitted nuisance."""
-        free = self.problem.free_parameters([effect_id], fixed)
+        ids, held = self._with_given(effect_id, fixed)
+        free = self.problem.free_parameters(ids, held)
         projected, points = self.problem.chord_refit(
-            [effect_id],
-            fixed,
+            ids,
+            held,
             free,
             np.concatenate([thetas, nuisances], axis=1),
             self.profile,
@@ -104,10 +121,12 @@ class Screening:
         return np.array([self.weighting.chi2(residual) for residual in projected]), points[:, len(free) :]
 
     def run(self) -> dict[str, ScreenedPoint]:
-        """Every effect's best point, refined; in the library's order."""
+        """Every effect's best point (but the given ones), refined; in the library's order."""
         best: dict[str, ScreenedPoint] = {}
         evidence = self.evidence
         for effect_id in EFFECTS:
+            if effect_id in self.given_ids:
+                continue
             by_fixed: dict[tuple, list[np.ndarray]] = {}
             for fixed, theta in grid(effect_id, self.rules):
                 by_fixed.setdefault(tuple(sorted(fixed.items())), []).append(theta)
@@ -130,12 +149,13 @@ class Screening:
     def _refined(self, effect_id: str, point: ScreenedPoint) -> ScreenedPoint | None:
         """One profiled Gauss-Newton step from ``point``, kept where it lowers the chi^2."""
         problem = self.problem
-        free = problem.free_parameters([effect_id], point.fixed)
+        ids, held = self._with_given(effect_id, point.fixed)
+        free = problem.free_parameters(ids, held)
         if not free:
             return None
         sqrt_weights = np.sqrt(self.weighting.weights)
         base_residual, jac = problem.jacobian(
-            [effect_id], point.fixed, free, np.concatenate([point.theta, point.nuisance]), nuisance_too=False
+            ids, held, free, np.concatenate([point.theta, point.nuisance]), nuisance_too=False
         )
         projected, _ = self.profile.project(base_residual)
         columns = self.profile.project_columns(jac[:, : len(free)]) * sqrt_weights[:, None]

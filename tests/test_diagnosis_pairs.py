@@ -1,0 +1,74 @@
+"""``brakegym diagnose`` on sets with two library effects: pairs before singles (the forward step of
+:mod:`brakegym.diagnosis.pipeline`). A gradient and a running resistance on recordings of mixed
+loads are both named (a gradient's force grows with the mass, a running resistance's constant term
+does not), and a friction level under a speed-sensor scale is named with it.
+
+The tolerances were fixed before the tests first ran: a gradient within 1 permil or 20 % (as in
+``tests/test_diagnosis.py``), a friction level within 0.03 of its scale.
+"""
+
+import pytest
+
+from brakegym.diagnosis import diagnose
+from brakegym.recordings.synth import EffectRequest, synthesize
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+GRADIENT_TOLERANCE_PERMIL = 1.0
+GRADIENT_TOLERANCE_SHARE = 0.2
+FRICTION_LEVEL_TOLERANCE = 0.03
+
+
+def test_names_a_gradient_and_a_running_resistance_on_mixed_loads(tmp_path):
+    gradient_permil = 6.0
+    resistance = {"A_N": 9000.0, "B_N_per_mps": 100.0, "C_N_per_mps2": 10.0}
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=7,
+        effects=[
+            EffectRequest("gradient", {"gradient_permil": gradient_permil}),
+            EffectRequest("running_resistance", resistance),
+        ],
+    )
+    # The loads differ between recordings: what tells the two forces apart.
+    assert len({application["load"] for application in result.key["applications"]}) >= 2
+    report = diagnose(result.folder).report
+    assert sorted(report["selected"]) == ["gradient", "running_resistance"], report["summary"]
+    fitted = report["parameters"]["gradient_permil"]
+    assert abs(fitted - gradient_permil) <= max(
+        GRADIENT_TOLERANCE_PERMIL, GRADIENT_TOLERANCE_SHARE * abs(gradient_permil)
+    ), fitted
+    # The forward step screened the other effects on top of the single it started from.
+    forward = report["forward_screening"]
+    assert len(forward["given"]) == 1 and forward["given"][0] in report["selected"]
+    (second,) = [e for e in report["selected"] if e not in forward["given"]]
+    assert forward["chi2_eff_profiled"][second] < forward["chi2_eff_given"]
+
+
+def test_names_a_friction_level_under_a_speed_sensor_scale(tmp_path):
+    # The recordings' friction factors absorb most of a friction level, and a speed-sensor scale
+    # takes the unmodified model's chi^2 down so far that the level never screens among the best
+    # singles: only screened on top of the scale does it show. The pair is selected, or named
+    # indistinguishable from the scale alone with what would separate them.
+    mu_scale = 1.10
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=11,
+        effects=[
+            EffectRequest("friction_level", {"mu_scale": mu_scale}),
+            EffectRequest("speed_sensor_scale", {"scale": 0.97}),
+        ],
+    )
+    report = diagnose(result.folder).report
+    pair = ["friction_level", "speed_sensor_scale"]
+    if report["selected"] == pair:
+        fitted = report["parameters"]["mu_scale"]
+    else:
+        assert report["selected"] == ["speed_sensor_scale"], report["summary"]
+        entry = next(e for e in report["indistinguishable_single_or_pair"] if e["pair"] == pair)
+        assert entry["separating_measurement"]
+        assert "friction_level" in report["summary"]
+        fitted = entry["pair_parameters"]["mu_scale"]
+    assert abs(fitted - mu_scale) <= FRICTION_LEVEL_TOLERANCE, fitted
