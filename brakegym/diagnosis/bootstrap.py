@@ -4,10 +4,14 @@ of the refitted values.
 
 Each replicate
 
-- simulates every recording from the fitted model: the fitted effect parameters, each recording's
-  fitted initial speed and initial disc temperature, and a fresh friction factor drawn as the fit's
-  prior says (the fitted friction level, if any, times 1 + ``prior_sigma`` standard normal, inside
-  the friction factor's bounds);
+- simulates every recording from the fitted model: the fitted effect parameters (a fitted friction
+  level as every recording's friction factor), each recording's fitted initial speed and initial
+  disc temperature, and a fresh draw of the scatter between applications as a campaign draws it
+  (:func:`brakegym.plants.train_scatter` in the scatter set-up ``scatter_setup``: every disc's
+  mu_0 and power coefficient a, and the running resistance A). The fit's friction-factor prior is
+  a scalar summary of that scatter; a scalar draw leaves out what the fit cannot absorb (a
+  scatter of a changes the friction's course over a stop, which a thermal fade reads), and its
+  intervals were as narrow as the Gauss-Newton ones;
 - adds fresh noise to each channel on the recording's own samples (the rows the fit uses, in time
   order), drawn from the channel's estimated AR(1) noise model (:mod:`.noise`: level sigma,
   lag-1 autocorrelation rho per sample of the channel's own sampling);
@@ -36,9 +40,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from .. import config as cfg
 from ..effects import FrictionLevel
+from ..plants import train_scatter
 from ..recordings.logger import ar1_noise
-from .fitting import NUISANCE_BOUNDS, FitProblem, FitResult, Samples
+from .fitting import FitProblem, FitResult, Samples
 from .judging import Candidate
 from .noise import ChannelNoise
 from .rules import DiagnosisRules
@@ -114,6 +120,7 @@ def bootstrap(
     replicates: int,
     fit_iterations: int,
     seed: int,
+    scatter_setup: str = "mcs-75-25",
 ) -> BootstrapResult | None:
     """The parametric bootstrap of ``fit`` (see the module documentation); None when the fit has
     no continuous parameter or fewer than 3 replicates are asked for."""
@@ -122,11 +129,11 @@ def bootstrap(
         return None
     rng = np.random.default_rng(seed)
     level = fit.parameters.get("mu_scale", 1.0) if FrictionLevel.id in fit.effect_ids else 1.0
-    k_low, k_high = NUISANCE_BOUNDS["k"]
     truths = np.tile(fit.x, (replicates, 1))
-    scatter = 1.0 + problem.prior_sigma * rng.standard_normal((replicates, n))
-    truths[:, p + 2 * n :] = np.clip(level * scatter, k_low, k_high)
-    residuals, _ = problem.simulate(fit.effect_ids, fit.fixed, fit.free, truths)
+    truths[:, p + 2 * n :] = level
+    vehicle = problem.recordings[0].vehicle
+    friction, resistance_A_N = train_scatter(vehicle, cfg.load("setups", scatter_setup)).draw(rng, replicates * n)
+    residuals, _ = problem.simulate(fit.effect_ids, fit.fixed, fit.free, truths, scatter=(friction, resistance_A_N))
     data_rows = problem.channel_of >= 0
     measured = np.concatenate(
         [s.measured[c] / problem.noise[c] for s in problem.samples for c in s.rows]
@@ -178,7 +185,15 @@ def add_bootstrap_intervals(
     ``bootstrap_replicates`` replicates)."""
     fit = selected.fit
     seed = bootstrap_seed(problem.recordings, selected.effect_ids)
-    result = bootstrap(problem, fit, noise_models, rules.bootstrap_replicates, rules.fit_iterations, seed)
+    result = bootstrap(
+        problem,
+        fit,
+        noise_models,
+        rules.bootstrap_replicates,
+        rules.fit_iterations,
+        seed,
+        rules.bootstrap_scatter_setup,
+    )
     if result is None:
         return None
     report = selected.report
