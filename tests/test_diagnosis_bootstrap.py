@@ -14,7 +14,9 @@ from brakegym.diagnosis.fitting import FitProblem
 from brakegym.diagnosis.inputs import zero_corrected
 from brakegym.diagnosis.locate import estimate_noise_models
 from brakegym.diagnosis.rules import DiagnosisRules
+from brakegym.physics.scatter import FrictionDraw
 from brakegym.recordings.format import read_dataset
+from brakegym.recordings.replay import replay_batch
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -80,3 +82,13 @@ def test_too_few_replicates_give_no_bootstrap(gradient_fit):
 def test_the_reported_interval_is_the_hull_of_both():
     merged = merged_intervals({"a": [1.0, 2.0], "b": [0.0, 1.0]}, {"a": [1.5, 2.5]})
     assert merged == {"a": [1.0, 2.5], "b": [0.0, 1.0]}
+
+
+def test_replay_refuses_a_scatter_of_the_wrong_shape(gradient_fit):
+    problem = gradient_fit[0]
+    one = problem.recordings[:1]
+    wrong = FrictionDraw(np.ones((2, 1, 1)), np.ones((2, 1, 1)))
+    with pytest.raises(ValueError, match="friction_draw"):
+        replay_batch(one, friction_draw=wrong)
+    with pytest.raises(ValueError, match="running_resistance_A_N"):
+        replay_batch(one, running_resistance_A_N=np.ones(3))
