@@ -84,7 +84,7 @@ class DiagnosisRules:
     #: each refits the selected model once, so the cost grows linearly; below 3, no bootstrap
     bootstrap_replicates: int = 12
     #: the scatter set-up (``configs/setups``) the bootstrap draws each application's friction and
-    #: running resistance from: ASSUMED, the one ``brakegym synth`` writes its sets with
+    #: running resistance from, ASSUMED to be the one ``brakegym synth`` writes its sets with
     bootstrap_scatter_setup: str = "mcs-75-25"
 
     def grid_points(self, n_parameters: int) -> int:
