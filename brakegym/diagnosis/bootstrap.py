@@ -10,8 +10,8 @@ Each replicate
   (:func:`brakegym.plants.train_scatter` in the scatter set-up ``scatter_setup``: every disc's
   mu_0 and power coefficient a, and the running resistance A). The fit's friction-factor prior is
   a scalar summary of that scatter; a scalar draw leaves out what the fit cannot absorb (a
-  scatter of a changes the friction's course over a stop, which a thermal fade reads), and its
-  intervals were as narrow as the Gauss-Newton ones;
+  scatter of a changes the friction's course over a stop, which a thermal fade reads; a
+  running resistance A shifts a gradient), which is what moves the estimates;
 - adds fresh noise to each channel on the recording's own samples (the rows the fit uses, in time
   order), drawn from the channel's estimated AR(1) noise model (:mod:`.noise`: level sigma,
   lag-1 autocorrelation rho per sample of the channel's own sampling);
