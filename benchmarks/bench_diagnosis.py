@@ -196,6 +196,12 @@ def run_set(
         "selected": selected,
         "parameters": report["parameters"],
         "ci95": chosen["ci95"] if chosen else {},
+        # The intervals the reported one is the hull of, for their coverage apart.
+        "ci95_gauss_newton_jackknife": chosen.get("ci95_gauss_newton_jackknife", {}) if chosen else {},
+        "ci95_bootstrap": chosen.get("ci95_bootstrap", {}) if chosen else {},
+        "bootstrap": {key: chosen.get(key) for key in ("bootstrap_replicates", "bootstrap_mean", "bootstrap_std")}
+        if chosen
+        else {},
         "indistinguishable": report["indistinguishable"],
         "signature_correlations": report["signature_correlations"],
         # A pair with the selected single that the data do not tell from it (not in the judging).

@@ -38,6 +38,7 @@ from scipy.optimize import least_squares
 
 from .. import config as cfg
 from ..effects import EFFECTS, FrictionLevel, ParameterSpec, SpeedSensorScale
+from ..physics.scatter import FrictionDraw
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.format import Recording
 from ..recordings.replay import STANDSTILL_SPEED_MPS, Replay, replay_batch, standstill_index
@@ -177,9 +178,16 @@ class FitProblem:
 
     # -- simulation ------------------------------------------------------------------------
     def simulate(
-        self, effect_ids: Sequence[str], fixed: dict[str, float], free: Sequence[FreeParameter], points: np.ndarray
+        self,
+        effect_ids: Sequence[str],
+        fixed: dict[str, float],
+        free: Sequence[FreeParameter],
+        points: np.ndarray,
+        scatter: tuple[FrictionDraw, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, list[list[Replay]]]:
-        """Residuals (m, rows) of ``m`` parameter points (m, len(free) + 3n), in one batch."""
+        """Residuals (m, rows) of ``m`` parameter points (m, len(free) + 3n), in one batch;
+        ``scatter``: a friction draw and running-resistance A per simulated train (m n), in place
+        of the nominal ones (:func:`~brakegym.recordings.replay.replay_batch`)."""
         points = np.atleast_2d(points)
         m, n = len(points), self.n
         p = len(free)
@@ -208,7 +216,15 @@ class FitProblem:
         lower, upper = FrictionLevel.parameters[0].lower, FrictionLevel.parameters[0].upper
         effects.append(FrictionLevel(mu_scale=np.clip(k, lower, upper)))
         true_v0 = v0 / values[SpeedSensorScale.id]["scale"] if SpeedSensorScale.id in values else v0
-        replays = replay_batch(self.recordings * m, effects, initial_speed_mps=true_v0, initial_disc_C=T0)
+        friction_draw, resistance_A_N = scatter if scatter is not None else (None, None)
+        replays = replay_batch(
+            self.recordings * m,
+            effects,
+            initial_speed_mps=true_v0,
+            initial_disc_C=T0,
+            friction_draw=friction_draw,
+            running_resistance_A_N=resistance_A_N,
+        )
         self.simulations += m * n
         residuals = np.empty((m, len(self.recording_of)))
         grouped = []

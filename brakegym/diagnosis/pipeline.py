@@ -49,6 +49,7 @@ from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
 from .adhesion import read_adhesion
+from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
 from .inputs import chain_report, zero_corrected
 from .judging import Candidate, Judge
@@ -140,13 +141,16 @@ class Diagnoser:
             pairs += forward_pairs
         verdict = judge.verdict(singles, pairs)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
+        entries = candidate_entries(problem, weighting, baseline, singles + pairs)
+        if verdict.selected is not None:
+            add_bootstrap_intervals(problem, verdict.selected, self.noise_models, rules)
         report = build_report(
             problem,
             weighting,
             self.noise,
             mismatch,
             unexplained,
-            candidate_entries(problem, weighting, baseline, singles + pairs),
+            entries,
             verdict,
             screened,
             {c.effect_ids[0] for c in singles},

@@ -5,7 +5,8 @@ Parameters come with 95 % intervals, the wider of the Gauss-Newton interval (eff
 and the jackknife over recordings with Student's t: the Gauss-Newton covariance sees only the
 noise of the samples, not what varies between recordings and no nuisance absorbs (each
 application's running-resistance draw shifts a fitted gradient); the spread of the
-leave-one-recording-out estimates does.
+leave-one-recording-out estimates does. The selected candidate's intervals are then widened to
+take in a parametric bootstrap's (:mod:`.bootstrap`).
 """
 
 from __future__ import annotations

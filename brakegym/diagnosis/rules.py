@@ -82,6 +82,14 @@ class DiagnosisRules:
     #: iterations of a candidate's full fit
     fit_iterations: int = 8
 
+    # -- intervals ------------------------------------------------------------------------------
+    #: replicates of the parametric bootstrap of the selected model's parameters (:mod:`.bootstrap`);
+    #: each refits the selected model once, so the cost grows linearly; below 3, no bootstrap
+    bootstrap_replicates: int = 12
+    #: the scatter set-up (``configs/setups``) the bootstrap draws each application's friction and
+    #: running resistance from, ASSUMED to be the one ``brakegym synth`` writes its sets with
+    bootstrap_scatter_setup: str = "mcs-75-25"
+
     def grid_points(self, n_parameters: int) -> int:
         """Screening grid points per parameter of an effect with ``n_parameters`` parameters."""
         return {1: self.grid_points_1d, 2: 3, 3: 2}[n_parameters]

@@ -37,6 +37,7 @@ import pandas as pd
 from .. import config as cfg
 from ..applications import MAX_STOP_TIME_S
 from ..effects import Effect, EffectedModel, apply_effects
+from ..physics.scatter import FrictionDraw
 from ..plants import train_plant
 from ..simulator import BatchConditions, PrescribedPressure, PressureSource, Simulator
 from ..simulator.state import FRICTION_HEAT, MU, T_FRIC
@@ -188,12 +189,17 @@ def replay_batch(
     initial_speed_mps: Sequence[float] | np.ndarray | None = None,
     initial_disc_C: Sequence[float] | np.ndarray | None = None,
     step_s: float = REPLAY_STEP_S,
+    friction_draw: FrictionDraw | None = None,
+    running_resistance_A_N: np.ndarray | None = None,
 ) -> list[Replay]:
     """Simulate recordings of one vehicle in one batch, with ``effects`` switched on (their
     parameters scalars, or one value per recording).
 
     ``initial_speed_mps`` (true speed) and ``initial_disc_C``, one value per recording (nan: the
-    recording's own), override the initial state.
+    recording's own), override the initial state. ``friction_draw`` (per disc, shape
+    (recordings, axles, discs per axle)) and ``running_resistance_A_N`` (one per recording) replace
+    the material's nominal mu_0 and a and the vehicle's nominal A: a drawn scatter, as a
+    campaign draws it.
     """
     if not recordings:
         raise ValueError("replay_batch needs at least one recording")
@@ -219,12 +225,25 @@ def replay_batch(
                 f"{DISC_TEMPERATURE} sample on the first line"
             )
         initial_C[b] = value
+    if friction_draw is None:
+        friction_draw = FrictionDraw(
+            np.full(disc_shape, material.initial_mu), np.full(disc_shape, material.power_coefficient_per_s)
+        )
+    if (
+        np.shape(friction_draw.initial_mu) != disc_shape
+        or np.shape(friction_draw.power_coefficient_per_s) != disc_shape
+    ):
+        raise ValueError(f"friction_draw: per-disc arrays of shape {disc_shape} expected for {n} recordings")
+    if running_resistance_A_N is None:
+        running_resistance_A_N = np.full(n, vehicle.running_resistance.A_N)
+    if np.shape(running_resistance_A_N) != (n,):
+        raise ValueError(f"running_resistance_A_N: one value per recording ({n}) expected")
     conditions = BatchConditions(
         mass_kg=np.array([r.mass_kg for r in recordings]),
         initial_speed_mps=np.zeros(n),
-        initial_mu=np.full(disc_shape, material.initial_mu),
-        power_coefficient_per_s=np.full(disc_shape, material.power_coefficient_per_s),
-        running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N),
+        initial_mu=np.asarray(friction_draw.initial_mu, dtype=float),
+        power_coefficient_per_s=np.asarray(friction_draw.power_coefficient_per_s, dtype=float),
+        running_resistance_A_N=np.asarray(running_resistance_A_N, dtype=float),
         initial_friction_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
         initial_disc_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
         ambient_temperature_K=np.array([r.metadata.ambient_C + ZERO_CELSIUS_K for r in recordings]),

@@ -1,0 +1,209 @@
+"""A parametric bootstrap of the selected model's parameters: re-simulate the recordings from the
+fit with fresh friction scatter and fresh noise, refit, and read the 95 % interval off the spread
+of the refitted values.
+
+Each replicate
+
+- simulates every recording from the fitted model: the fitted effect parameters (a fitted friction
+  level as every recording's friction factor), each recording's fitted initial speed and initial
+  disc temperature, and a fresh draw of the scatter between applications as a campaign draws it
+  (:func:`brakegym.plants.train_scatter` in the scatter set-up ``scatter_setup``: every disc's
+  mu_0 and power coefficient a, and the running resistance A). The fit's friction-factor prior is
+  a scalar summary of that scatter; a scalar draw leaves out what the fit cannot absorb (a
+  scatter of a changes the friction's course over a stop, which a thermal fade reads; a
+  running resistance A shifts a gradient), which is what moves the estimates;
+- adds fresh noise to each channel on the recording's own samples (the rows the fit uses, in time
+  order), drawn from the channel's estimated AR(1) noise model (:mod:`.noise`: level sigma,
+  lag-1 autocorrelation rho per sample of the channel's own sampling);
+- refits the selected model only (not the whole selection: the cost stays bounded) with
+  :meth:`.fitting.FitProblem.fit`, from the fitted values, with the set's inputs (pressures) and
+  noise levels as they are. Integer parameters stay at their selected value.
+
+The interval is the bias-corrected normal interval of the replicates: centre theta - (mean of the
+replicates - theta), half-width Student's t (0.975, B - 1) times their standard deviation. The
+basic (pivotal) bootstrap's bias correction is kept (an estimator that the fit biases one way is
+moved back the other way, where a percentile interval would move it further), but its quantiles
+are not: with a few tens of replicates the 2.5 % and 97.5 % percentiles are the one or two most
+extreme replicates, while the standard deviation uses all of them.
+
+The random stream is seeded from the bytes of the recordings' samples and the selected effects,
+so the same data give the same intervals bit for bit.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .. import config as cfg
+from ..effects import FrictionLevel
+from ..plants import train_scatter
+from ..recordings.logger import ar1_noise
+from .fitting import FitProblem, FitResult, Samples
+from .judging import Candidate
+from .noise import ChannelNoise
+from .rules import DiagnosisRules
+
+__all__ = ["BootstrapResult", "add_bootstrap_intervals", "bootstrap", "bootstrap_seed", "merged_intervals"]
+
+
+@dataclass
+class BootstrapResult:
+    """The refitted effect parameters of every replicate and the interval they give.
+
+    ``estimates``: (replicates, free parameters), in the order of the fit's free parameters;
+    ``ci95``: per free parameter, the bias-corrected normal interval inside the bounds;
+    ``seed``: the seed of the random stream."""
+
+    names: list[str]
+    estimates: np.ndarray
+    ci95: dict[str, list[float]]
+    seed: int
+
+
+def bootstrap_seed(recordings: Sequence, effect_ids: Sequence[str]) -> int:
+    """A seed from the bytes of the recordings' samples (every column, in file order) and the
+    effect ids: the same data and selection give the same stream."""
+    digest = hashlib.sha256()
+    for recording in recordings:
+        for column in recording.data.columns:
+            values = recording.data[column].to_numpy()
+            digest.update(str(column).encode())
+            digest.update(values.tobytes() if values.dtype.kind == "f" else str(values.tolist()).encode())
+    digest.update(",".join(effect_ids).encode())
+    return int.from_bytes(digest.digest()[:8], "little")
+
+
+def _replica_noise(
+    problem: FitProblem, noise_models: Mapping[str, ChannelNoise], rng: np.random.Generator, replicates: int
+) -> np.ndarray:
+    """(replicates, data rows): AR(1) noise, normalised by each channel's noise level, on every
+    recording's fit rows in the problem's row order. The noise runs along each channel's own
+    samples (its non-blank cells), then is taken at the rows the fit uses."""
+    parts = []
+    for recording, samples in zip(problem.recordings, problem.samples):
+        for channel, rows in samples.rows.items():
+            model = noise_models.get(channel)
+            rho = model.rho if model is not None and np.isfinite(model.rho) else 0.0
+            sigma = model.sigma if model is not None and np.isfinite(model.sigma) else problem.noise[channel]
+            present = np.flatnonzero(~np.isnan(recording.channel(channel)))
+            noise = ar1_noise(rng, (len(present), replicates), sigma, float(np.clip(rho, -0.99, 0.99)))
+            parts.append(noise[np.searchsorted(present, rows)].T / problem.noise[channel])
+    return np.concatenate(parts, axis=1)
+
+
+def _replica(problem: FitProblem, normalised_measured: np.ndarray) -> FitProblem:
+    """A copy of ``problem`` whose measured values are ``normalised_measured`` (data rows, in
+    noise units) times each channel's noise level; recordings, inputs and noise levels shared."""
+    replica = copy.copy(problem)
+    replica.simulations = 0
+    samples, start = [], 0
+    for original in problem.samples:
+        measured = {}
+        for channel, rows in original.rows.items():
+            measured[channel] = normalised_measured[start : start + len(rows)] * problem.noise[channel]
+            start += len(rows)
+        samples.append(Samples(original.rows, measured))
+    replica.samples = samples
+    return replica
+
+
+def bootstrap(
+    problem: FitProblem,
+    fit: FitResult,
+    noise_models: Mapping[str, ChannelNoise],
+    replicates: int,
+    fit_iterations: int,
+    seed: int,
+    scatter_setup: str = "mcs-75-25",
+) -> BootstrapResult | None:
+    """The parametric bootstrap of ``fit`` (see the module documentation); None when the fit has
+    no continuous parameter or fewer than 3 replicates are asked for."""
+    p, n = len(fit.free), problem.n
+    if p == 0 or replicates < 3:
+        return None
+    rng = np.random.default_rng(seed)
+    level = fit.parameters.get("mu_scale", 1.0) if FrictionLevel.id in fit.effect_ids else 1.0
+    truths = np.tile(fit.x, (replicates, 1))
+    truths[:, p + 2 * n :] = level
+    vehicle = problem.recordings[0].vehicle
+    friction, resistance_A_N = train_scatter(vehicle, cfg.load("setups", scatter_setup)).draw(rng, replicates * n)
+    residuals, _ = problem.simulate(fit.effect_ids, fit.fixed, fit.free, truths, scatter=(friction, resistance_A_N))
+    data_rows = problem.channel_of >= 0
+    measured = np.concatenate(
+        [s.measured[c] / problem.noise[c] for s in problem.samples for c in s.rows]
+    )  # the rows' order of FitProblem._residual
+    simulated = measured[None, :] - residuals[:, data_rows]
+    noisy = simulated + _replica_noise(problem, noise_models, rng, replicates)
+    estimates = np.empty((replicates, p))
+    for b in range(replicates):
+        replica = _replica(problem, noisy[b])
+        refit = replica.fit(list(fit.effect_ids), fit.x, fixed=fit.fixed, max_iterations=fit_iterations)
+        estimates[b] = refit.x[:p]
+        problem.simulations += replica.simulations
+    problem.simulations += replicates * n
+    theta = fit.x[:p]
+    bias = estimates.mean(axis=0) - theta
+    spread = estimates.std(axis=0, ddof=1)
+    quantile = float(stats.t.ppf(0.975, replicates - 1))
+    ci95 = {}
+    for j, parameter in enumerate(fit.free):
+        centre = theta[j] - bias[j]
+        half = quantile * spread[j]
+        ci95[parameter.name] = [
+            round(float(max(centre - half, parameter.spec.lower)), 5),
+            round(float(min(centre + half, parameter.spec.upper)), 5),
+        ]
+    return BootstrapResult([f.name for f in fit.free], estimates, ci95, seed)
+
+
+def merged_intervals(
+    gauss_newton_jackknife: Mapping[str, Sequence[float]], bootstrapped: Mapping[str, Sequence[float]]
+) -> dict[str, list[float]]:
+    """Per parameter, the hull of the Gauss-Newton/jackknife interval and the bootstrap's (a
+    parameter the bootstrap does not cover keeps its interval)."""
+    out = {}
+    for name, (low, high) in gauss_newton_jackknife.items():
+        if name in bootstrapped:
+            b_low, b_high = bootstrapped[name]
+            low, high = min(low, b_low), max(high, b_high)
+        out[name] = [low, high]
+    return out
+
+
+def add_bootstrap_intervals(
+    problem: FitProblem, selected: Candidate, noise_models: Mapping[str, ChannelNoise], rules: DiagnosisRules
+) -> BootstrapResult | None:
+    """Bootstrap the selected candidate's fit and write its intervals into its report entry:
+    ``ci95`` becomes the hull of the Gauss-Newton/jackknife interval (kept as
+    ``ci95_gauss_newton_jackknife``) and the bootstrap's (``ci95_bootstrap``, from
+    ``bootstrap_replicates`` replicates)."""
+    fit = selected.fit
+    seed = bootstrap_seed(problem.recordings, selected.effect_ids)
+    result = bootstrap(
+        problem,
+        fit,
+        noise_models,
+        rules.bootstrap_replicates,
+        rules.fit_iterations,
+        seed,
+        rules.bootstrap_scatter_setup,
+    )
+    if result is None:
+        return None
+    report = selected.report
+    report["ci95_gauss_newton_jackknife"] = report["ci95"]
+    report["ci95_bootstrap"] = result.ci95
+    report["bootstrap_replicates"] = int(len(result.estimates))
+    # The replicates' mean and spread, from which any other bootstrap interval can be read.
+    report["bootstrap_mean"] = {n: round(float(v), 6) for n, v in zip(result.names, result.estimates.mean(axis=0))}
+    report["bootstrap_std"] = {
+        n: round(float(v), 6) for n, v in zip(result.names, result.estimates.std(axis=0, ddof=1))
+    }
+    report["ci95"] = merged_intervals(report["ci95_gauss_newton_jackknife"], result.ci95)
+    return result

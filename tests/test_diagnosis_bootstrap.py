@@ -1,0 +1,94 @@
+"""The parametric bootstrap of the selected model's parameters (:mod:`brakegym.diagnosis.bootstrap`):
+the same data give the same intervals bit for bit, and on a small synthetic set with a known
+gradient the bootstrap interval holds the truth and is narrower than the effect itself.
+
+The thresholds were fixed before the test first ran: the interval must hold the drawn gradient,
+exclude zero (the effect is there) and be narrower than the gradient's size.
+"""
+
+import numpy as np
+import pytest
+
+from brakegym.diagnosis.bootstrap import bootstrap, bootstrap_seed, merged_intervals
+from brakegym.diagnosis.fitting import FitProblem
+from brakegym.diagnosis.inputs import zero_corrected
+from brakegym.diagnosis.locate import estimate_noise_models
+from brakegym.diagnosis.rules import DiagnosisRules
+from brakegym.physics.scatter import FrictionDraw
+from brakegym.recordings.format import read_dataset
+from brakegym.recordings.replay import replay_batch
+from brakegym.recordings.synth import EffectRequest, synthesize
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+GRADIENT_PERMIL = 6.0
+REPLICATES = 8
+
+
+@pytest.fixture(scope="module")
+def gradient_fit(tmp_path_factory):
+    """A fitted gradient on 5 recordings with a 6 permil gradient, as the diagnosis fits it."""
+    folder = synthesize(
+        tmp_path_factory.mktemp("bootstrap") / "set",
+        5,
+        seed=3,
+        effects=[EffectRequest("gradient", {"gradient_permil": GRADIENT_PERMIL})],
+    ).folder
+    recordings = read_dataset(folder).recordings
+    rules = DiagnosisRules()
+    noise_models = estimate_noise_models(recordings, rules.noise_window_s)
+    noise = {c: m.sigma for c, m in noise_models.items() if np.isfinite(m.sigma) and m.sigma > 0}
+    problem = FitProblem([zero_corrected(r) for r in recordings], noise)
+    start = np.concatenate([[GRADIENT_PERMIL / 2.0], problem.gridded_start()])
+    fit = problem.fit(["gradient"], start, max_iterations=rules.fit_iterations)
+    return problem, fit, noise_models, rules
+
+
+def test_the_same_data_give_the_same_bootstrap_bit_for_bit(gradient_fit):
+    problem, fit, noise_models, rules = gradient_fit
+    seed = bootstrap_seed(problem.recordings, fit.effect_ids)
+    assert seed == bootstrap_seed(list(problem.recordings), ("gradient",))
+    first = bootstrap(problem, fit, noise_models, 3, rules.fit_iterations, seed)
+    second = bootstrap(problem, fit, noise_models, 3, rules.fit_iterations, seed)
+    assert first.estimates.tobytes() == second.estimates.tobytes()
+    assert first.ci95 == second.ci95
+
+
+def test_the_seed_follows_the_bytes_of_the_data(gradient_fit):
+    problem, fit, _, _ = gradient_fit
+    recordings = list(problem.recordings)
+    assert bootstrap_seed(recordings, ("gradient",)) != bootstrap_seed(recordings[1:], ("gradient",))
+    assert bootstrap_seed(recordings, ("gradient",)) != bootstrap_seed(recordings, ("running_resistance",))
+
+
+def test_the_bootstrap_interval_holds_a_known_gradient_and_is_narrower_than_it(gradient_fit):
+    problem, fit, noise_models, rules = gradient_fit
+    seed = bootstrap_seed(problem.recordings, fit.effect_ids)
+    result = bootstrap(problem, fit, noise_models, REPLICATES, rules.fit_iterations, seed)
+    low, high = result.ci95["gradient_permil"]
+    assert low <= GRADIENT_PERMIL <= high, (low, high, fit.parameters)
+    assert low > 0.0, (low, high)  # the effect is there
+    assert high - low < GRADIENT_PERMIL, (low, high)
+    # The replicates are real refits: they scatter, and around the fitted value.
+    assert np.std(result.estimates[:, 0]) > 0.0
+    assert abs(np.mean(result.estimates[:, 0]) - fit.x[0]) < GRADIENT_PERMIL / 2.0
+
+
+def test_too_few_replicates_give_no_bootstrap(gradient_fit):
+    problem, fit, noise_models, rules = gradient_fit
+    assert bootstrap(problem, fit, noise_models, 2, rules.fit_iterations, 0) is None
+
+
+def test_the_reported_interval_is_the_hull_of_both():
+    merged = merged_intervals({"a": [1.0, 2.0], "b": [0.0, 1.0]}, {"a": [1.5, 2.5]})
+    assert merged == {"a": [1.0, 2.5], "b": [0.0, 1.0]}
+
+
+def test_replay_refuses_a_scatter_of_the_wrong_shape(gradient_fit):
+    problem = gradient_fit[0]
+    one = problem.recordings[:1]
+    wrong = FrictionDraw(np.ones((2, 1, 1)), np.ones((2, 1, 1)))
+    with pytest.raises(ValueError, match="friction_draw"):
+        replay_batch(one, friction_draw=wrong)
+    with pytest.raises(ValueError, match="running_resistance_A_N"):
+        replay_batch(one, running_resistance_A_N=np.ones(3))
