@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import yaml
 
 from brakegym import config as cfg
 from brakegym.applications import TrainApplication, train_stops
+from brakegym.cli import main
 from brakegym.physics import LoadTransfer
 from brakegym.plants import load_transfer, wheel_rail_adhesion
 from brakegym.simulator.state import SPEED
@@ -237,3 +239,50 @@ def test_unloaded_trailing_axles_lock_first_on_the_low_rail(stops):
     braking = np.array(on.decelerations) > 0.1
     order_by_load = np.argsort(loads[braking][0])
     assert set(order_by_load[:2]) == {3, 7}
+
+
+# ------------------------------------------------------------------------------------------------
+# Where the option is switched
+
+
+def test_wsp_test_command_with_load_transfer(tmp_path, capsys):
+    """``brakegym wsp-test --load-transfer``, no WSP, low rail: the locked axles slide with a
+    force of their own load times the same friction, so the leading (loaded) axle of each car
+    dissipates more on its tread than the trailing (unloaded) one; without the option they are
+    all alike."""
+    reports = {}
+    for flag in ((), ("--load-transfer",)):
+        path = tmp_path / f"wsp{len(flag)}.json"
+        arguments = ["wsp-test", "--load", "empty", "--condition", "low", "--wsp", "none", "--v0", "60"]
+        assert main([*arguments, *flag, "--json", str(path)]) == 0
+        reports[bool(flag)] = json.loads(path.read_text())
+    assert "load transfer" in capsys.readouterr().out
+    assert reports[True]["load_transfer"] is True and reports[False]["load_transfer"] is False
+    off, on = (np.array(reports[key]["slide_energy_per_axle_MJ"]) for key in (False, True))
+    assert np.ptp(off) < 1e-9 * off.max()
+    for car in range(2):
+        assert on[4 * car] > on[4 * car + 1] > on[4 * car + 3]
+        assert on[4 * car] > on[4 * car + 2] > on[4 * car + 3]
+
+
+def test_wsp_test_command_without_car_geometry_says_what_is_missing(config_copy, capsys):
+    path = config_copy / "vehicles" / "emu_8axle.yaml"
+    _edit(path, lambda data: data["wheelsets"].pop("car_geometry"))
+    arguments = ["wsp-test", "--load", "empty", "--wsp", "none", "--v0", "60", "--load-transfer"]
+    assert main(arguments) == 2
+    assert "wheelsets.car_geometry: missing" in capsys.readouterr().err
+
+
+def test_environment_option_switches_load_transfer_on():
+    """``wheel_rail.load_transfer`` of the environment config: off by default, on it gives the
+    fleet's trains the vehicle's load transfer, and an episode's axle loads then differ."""
+    from brakegym.envs import BrakeEnv
+
+    assert BrakeEnv("wheel_slide_protection").core.fleet.adhesion.load_transfer is None
+    env = BrakeEnv("wheel_slide_protection", config={"wheel_rail": {"load_transfer": True}})
+    assert env.core.fleet.adhesion.load_transfer == load_transfer(_vehicle())
+    env.reset(seed=3)
+    for _ in range(150):  # 3 s of 50 Hz steps, the valves at rest (apply): past the coast and the brake's rise
+        env.step(np.full(8, 2))
+    loads = env.core.fleet.sim.axle_wheel_load_N[:, 0]
+    assert loads[0] > loads[3]

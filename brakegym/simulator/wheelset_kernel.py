@@ -185,24 +185,13 @@ def _axle_laws(position_m, section_starts_m, axle_offsets_m, sections):
 
 @numba.njit(**JIT_OPTIONS)
 def _creep_forces(
-    speed_mps,
-    wheel_speed_mps,
-    axle_wheel_load_N,
-    axle_stiffness_N,
-    friction_factor,
-    scheme,
-    laws,
-    sections,
-    force_N,
-    slope_N,
+    speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
 ):
     """Each axle's force on the rail, both wheels (N, retarding for creep > 0), and its slope
-    dF/ds at fixed friction (N per unit creep), into ``force_N`` and ``slope_N`` (A,), each axle
-    at its wheel load and creep stiffness (A,); every section's mu_0 times the train's
-    ``friction_factor``."""
+    dF/ds at fixed friction (N per unit creep), into ``force_N`` and ``slope_N`` (A,); every
+    section's mu_0 times the train's ``friction_factor``."""
     regularisation = scheme[REGULARISATION_SPEED_MPS]
     for axle in range(force_N.shape[0]):
-        wheel_load_N, stiffness_N = axle_wheel_load_N[axle], axle_stiffness_N[axle]
         law = laws[sections[axle]]
         u = wheel_speed_mps[axle]
         slip = speed_mps - u
@@ -244,41 +233,54 @@ def _transferred_loads(speed_mps, force_N, loads, constants, wheel_load_N, stiff
 
 
 @numba.njit(**JIT_OPTIONS)
-def _axle_forces(
+def _creep_forces_per_axle(
     speed_mps,
     wheel_speed_mps,
-    wheel_load_N,
-    stiffness_N,
+    axle_wheel_load_N,
+    axle_stiffness_N,
     friction_factor,
     scheme,
     laws,
     sections,
-    loads,
-    constants,
     force_N,
     slope_N,
 ):
-    """:func:`_creep_forces` at the axles' wheel loads ``wheel_load_N`` and stiffnesses (A,); with
-    load transfer, those loads are then taken to the deceleration these forces give
-    (:func:`_transferred_loads`, explicit: the deceleration of this instant with the loads in hand)
-    and the forces evaluated again at them."""
-    _creep_forces(
+    """:func:`_creep_forces` with each axle at its own wheel load and creep stiffness (A,) (load
+    transfer; the static loads keep :func:`_creep_forces`, whose loop this is)."""
+    regularisation = scheme[REGULARISATION_SPEED_MPS]
+    for axle in range(force_N.shape[0]):
+        wheel_load_N, stiffness_N = axle_wheel_load_N[axle], axle_stiffness_N[axle]
+        law = laws[sections[axle]]
+        u = wheel_speed_mps[axle]
+        slip = speed_mps - u
+        s = creep(speed_mps, u, regularisation)
+        mu0 = law[STATIC_FRICTION] * friction_factor
+        ratio, decay = law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
+        reduction_a, reduction_s = law[ADHESION_REDUCTION], law[SLIP_REDUCTION]
+        coefficient = adhesion_coefficient(
+            s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
+        )
+        force_N[axle] = 2.0 * (wheel_load_N * coefficient)
+        slope_N[axle] = (2.0 * wheel_load_N) * creep_slope_at_fixed_friction(
+            s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
+        )
+
+
+@numba.njit(**JIT_OPTIONS)
+def _transferred_creep_forces(
+    speed_mps, wheel_speed_mps, friction_factor, scheme, laws, sections, loads, constants, work, force_N, slope_N
+):
+    """The creep forces and slopes (A,) with load transfer: at the wheel loads in hand
+    (``work[WHEEL_LOAD]``, ``work[CREEP_STIFFNESS]``), then, with the loads taken to the
+    deceleration these forces give (:func:`_transferred_loads`, explicit), again at the new loads."""
+    wheel_load_N, stiffness_N = work[WHEEL_LOAD], work[CREEP_STIFFNESS]
+    _creep_forces_per_axle(
         speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
     )
-    if scheme[LOAD_TRANSFER] != 0.0:
-        _transferred_loads(speed_mps, force_N, loads, constants, wheel_load_N, stiffness_N)
-        _creep_forces(
-            speed_mps,
-            wheel_speed_mps,
-            wheel_load_N,
-            stiffness_N,
-            friction_factor,
-            scheme,
-            laws,
-            sections,
-            force_N,
-            slope_N,
-        )
+    _transferred_loads(speed_mps, force_N, loads, constants, wheel_load_N, stiffness_N)
+    _creep_forces_per_axle(
+        speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
+    )
 
 
 @numba.njit(**JIT_OPTIONS)
@@ -550,21 +552,23 @@ def _substeps(
     delta = h / n
     u, u_new, force, slope = work[WHEEL_SPEED], work[NEW_WHEEL_SPEED], work[FORCE], work[SLOPE]
     pressure, clamp, slip_power, new_slip_power = work[PRESSURE], work[CLAMP], work[SLIP_POWER], work[NEW_SLIP_POWER]
-    wheel_load, stiffness = work[WHEEL_LOAD], work[CREEP_STIFFNESS]
-    if scheme[LOAD_TRANSFER] != 0.0:
+    wheel_load, stiffness = loads[WHEEL_LOAD_N], loads[CREEP_STIFFNESS_N]
+    transfer = scheme[LOAD_TRANSFER] != 0.0
+    if transfer:  # the loads at the end of the last step
         for axle in range(u.shape[0]):
-            wheel_load[axle] = loads[AXLE_LOAD_GAIN + u.shape[0] + axle]
-            stiffness[axle] = loads[CREEP_STIFFNESS_N] * (wheel_load[axle] / loads[WHEEL_LOAD_N]) ** (2.0 / 3.0)
-    else:
-        wheel_load[:] = loads[WHEEL_LOAD_N]
-        stiffness[:] = loads[CREEP_STIFFNESS_N]
+            load = loads[AXLE_LOAD_GAIN + u.shape[0] + axle]
+            work[WHEEL_LOAD, axle] = load
+            work[CREEP_STIFFNESS, axle] = stiffness * (load / wheel_load) ** (2.0 / 3.0)
     friction_factor = loads[STATIC_FRICTION_FACTOR]
     middle_speed, stop_fraction = rows[SPEED], math.nan
     middle_wheels = u.copy()
     _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-    _axle_forces(
-        rows[SPEED], u, wheel_load, stiffness, friction_factor, scheme, laws, sections, loads, constants, force, slope
-    )
+    if transfer:
+        _transferred_creep_forces(
+            rows[SPEED], u, friction_factor, scheme, laws, sections, loads, constants, work, force, slope
+        )
+    else:
+        _creep_forces(rows[SPEED], u, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
     _clamp_forces(parameters, stage_pressure_bar[0, train], clamp)
     resistance_power, mu_eff_speed = _substep_powers(
         parameters, rows[SPEED], u, clamp, force, loads, constants, slip_power
@@ -585,9 +589,12 @@ def _substeps(
         weight = 0.5 * delta * theta
         rows[POSITION] += weight * (v0 + v_new)
         _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-        _axle_forces(
-            v_new, u_new, wheel_load, stiffness, friction_factor, scheme, laws, sections, loads, constants, force, slope
-        )
+        if transfer:
+            _transferred_creep_forces(
+                v_new, u_new, friction_factor, scheme, laws, sections, loads, constants, work, force, slope
+            )
+        else:
+            _creep_forces(v_new, u_new, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
         new_resistance, new_mu_eff = _substep_powers(
             parameters, v_new, u_new, clamp, force, loads, constants, new_slip_power
         )
