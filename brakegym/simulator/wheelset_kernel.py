@@ -782,7 +782,8 @@ def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop
 
     ``arguments``: (plant parameters (:func:`.kernel.plant_parameters`), scheme parameters
     (N_SCHEME_PARAMETERS,), power coefficients (A, k, B), train constants (N_TRAIN_CONSTANTS, B),
-    wheelset constants (N_WHEELSET_CONSTANTS, B), the rail (section starts (S,), their laws
+    wheelset constants (N_WHEELSET_CONSTANTS, B; with load transfer 2 A rows more, see
+    AXLE_LOAD_GAIN, the second A of them written at the step's end), the rail (section starts (S,), their laws
     (S, N_LAW_PARAMETERS), axle offsets behind the train's position (A,)), the cylinder pressures
     at the step's start, middle and end (3, B, A)). ``start`` and ``end``: the (disc, train,
     wheelset) states before and after the step. With ``hold_standing`` a train standing at the
