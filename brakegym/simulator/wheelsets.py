@@ -206,8 +206,9 @@ class AdhesionSimulator(Simulator):
 
     @property
     def axle_wheel_load_N(self) -> np.ndarray:
-        """Each axle's wheel load per train (A, B), N: the static share without load transfer;
-        with it, the load at the current state (written by the kernel at the end of each step)."""
+        """The wheel load of each axle and train in N, shaped (A, B). Without load transfer the
+        static share; with it, the load at the current state (written by the kernel at the end of
+        each step)."""
         if self.adhesion.load_transfer is None:
             return np.broadcast_to(self.wheel_load_N, (self.plant.n_axles, self.n_trains))
         first = wheelset_kernel.AXLE_LOAD_GAIN + self.plant.n_axles
