@@ -19,6 +19,7 @@ from .physics import (
     DiscThermalModel,
     FrictionDraw,
     FrictionLaw,
+    LoadTransfer,
     PolachLaw,
     RailSections,
     RunningResistanceLaw,
@@ -166,13 +167,38 @@ def rail_friction_factor_for_samples(
     return static_friction_factor(rail_static_friction_relative_sigma(rail), normals)
 
 
-def wheel_rail_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line) -> WheelRailAdhesion:
+def load_transfer(vehicle: cfg.Vehicle) -> LoadTransfer:
+    """The load transfer between and within the bogies of ``vehicle`` while it brakes
+    (docs/adhesion.md, "Load transfer"), from its ``wheelsets.car_geometry``."""
+    geometry = vehicle.wheelsets.car_geometry
+    if geometry is None:
+        raise cfg.ConfigError(
+            f"vehicle {vehicle.name!r}, wheelsets.car_geometry: missing; load transfer needs the car "
+            "body's centre-of-gravity height, the bogie-pivot spacing and the bogies' wheelbase, mass "
+            "and centre-of-gravity height"
+        )
+    return LoadTransfer(
+        body_cg_height_m=geometry.body_cg_height_m,
+        bogie_pivot_spacing_m=geometry.bogie_pivot_spacing_m,
+        bogie_wheelbase_m=geometry.bogie_wheelbase_m,
+        bogie_mass_kg=geometry.bogie_mass_kg,
+        bogie_cg_height_m=geometry.bogie_cg_height_m,
+        bogies=vehicle.bogies,
+        axles_per_bogie=vehicle.axles_per_bogie,
+    )
+
+
+def wheel_rail_adhesion(
+    vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line, with_load_transfer: bool = False
+) -> WheelRailAdhesion:
     """The adhesion option of ``vehicle`` on a rail in one condition or on a line of sections
-    (docs/adhesion.md)."""
+    (docs/adhesion.md); ``with_load_transfer``: each axle's normal load changes with the train's
+    deceleration (:func:`load_transfer`), else every wheel carries the static share."""
     return WheelRailAdhesion(
         law=rail_sections(rail) if isinstance(rail, cfg.Line) else polach_law(rail),
         contact=wheel_rail_contact(vehicle),
         wheelset_inertia_kgm2=vehicle.wheelsets.inertia_kgm2,
+        load_transfer=load_transfer(vehicle) if with_load_transfer else None,
     )
 
 

@@ -151,12 +151,15 @@ def load_rail(condition: str | None, line: str | None) -> cfg.RailCondition | cf
     return cfg.load("lines", line) if line is not None else cfg.load("rail_conditions", condition)
 
 
-def seeded_adhesion(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line, seed: int | None) -> WheelRailAdhesion:
-    """The adhesion option of ``vehicle`` on ``rail``; with a ``seed``, the rail's mu_0 scaled by
+def seeded_adhesion(
+    vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line, seed: int | None, with_load_transfer: bool = False
+) -> WheelRailAdhesion:
+    """The adhesion option of ``vehicle`` on ``rail`` (with load transfer between its axles if
+    asked, :func:`~brakegym.plants.wheel_rail_adhesion`); with a ``seed``, the rail's mu_0 scaled by
     the factor a campaign seeded so draws for its stop 0
     (:func:`~brakegym.plants.rail_friction_factor_for_samples`: lognormal, mean 1, one factor for
     a whole line, the same day's rail)."""
-    adhesion = wheel_rail_adhesion(vehicle, rail)
+    adhesion = wheel_rail_adhesion(vehicle, rail, with_load_transfer)
     if seed is None:
         return adhesion
     factor = rail_friction_factor_for_samples(rail, seed, np.zeros(1, dtype=np.int64))
@@ -294,7 +297,7 @@ class WspTraces:
     def update(self, sim: AdhesionSimulator) -> None:
         speed, position = sim.train[SPEED].copy(), sim.train[POSITION].copy()
         wheels = sim.wheel_speed_mps.copy()  # (A, B)
-        axle_load_N = 2.0 * sim.wheel_load_N  # (B,)
+        axle_load_N = 2.0 * sim.axle_wheel_load_N  # (A, B): each axle's own with load transfer
         law = sim.rail_law_at(position)
         used = sim.creep_force_N(speed, wheels, law) / axle_load_N
         available = self.table.peak(speed, self.table.section_of(position))
@@ -358,6 +361,7 @@ def wsp_test(
     setup: str = DEFAULT_SCATTER_SETUP,
     valves: str = "axle",
     control_step_s: float = DEFAULT_CONTROL_STEP_S,
+    load_transfer: bool = False,
 ) -> WspTestResult:
     """The WSP test: an emergency EP stop of ``vehicle_name`` (``load``) from ``v0_kmh`` on the
     rail ``condition`` (or the ``line``) with the WSP ``wsp`` (:func:`resolve_wsp`) on the
@@ -366,7 +370,8 @@ def wsp_test(
     Without ``seed`` the nominal stop; with it, the discs' friction and the running resistance
     drawn as sample 0 of a campaign seeded ``seed`` in the set-up ``setup``
     (:meth:`~brakegym.plants.TrainScatter.draw_for_samples`) and the rail's mu_0 from the seed's
-    rail stream (:func:`seeded_adhesion`); both stops share the stream."""
+    rail stream (:func:`seeded_adhesion`); both stops share the stream. ``load_transfer``: both stops
+    with the load transfer between the axles while braking (docs/adhesion.md, "Load transfer")."""
     if not (np.isfinite(v0_kmh) and v0_kmh > 0):
         raise ValueError(f"v0 = {v0_kmh} km/h: must be a positive speed")
     vehicle = cfg.load("vehicles", vehicle_name)
@@ -404,9 +409,9 @@ def wsp_test(
         )
         return stops, traces, table
 
-    adhesion = seeded_adhesion(vehicle, rail, seed)
+    adhesion = seeded_adhesion(vehicle, rail, seed, load_transfer)
     test, traces, table = stop(adhesion)
-    reference, dry_traces, _ = stop(seeded_adhesion(vehicle, dry, seed))
+    reference, dry_traces, _ = stop(seeded_adhesion(vehicle, dry, seed, load_transfer))
     dry_trace = dry_traces.arrays()
 
     distance_m = float(test.summary.braking_distance_m[0])
@@ -440,6 +445,7 @@ def wsp_test(
         "brake_mode": TEST_BRAKE_MODE,
         "actuation": TEST_ACTUATION,
         "control_step_s": control_step_s,
+        "load_transfer": load_transfer,
         "stop_distance_m": distance_m,
         "stop_time_s": float(test.summary.braking_time_s[0]),
         "dry_stop_distance_m": dry_distance_m,

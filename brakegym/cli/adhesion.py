@@ -4,11 +4,12 @@
     brakegym wsp-test --vehicle emu_8axle --load empty --condition low --wsp reference --v0 120
     brakegym wsp-test --load empty --condition low --wsp none --v0 120 --json none.json --figure none.png
     brakegym wsp-test --load empty --line low_patch --wsp my_wsp.yaml --v0 120 --seed 7
+    brakegym wsp-test --load empty --condition low --wsp reference --v0 120 --load-transfer
 
 JSON keys written by ``wsp-test`` (``--json``) are a public interface and stay stable:
 stop_distance_m, dry_stop_distance_m, distance_extension_pct, adhesion_utilisation,
 max_locked_time_s, slide_energy_MJ; and what was asked (vehicle, load, condition or line, wsp,
-valves, v0_kmh, seed), ideal_distance_m, adhesion_utilisation_definition and its source,
+valves, v0_kmh, seed, load_transfer), ideal_distance_m, adhesion_utilisation_definition and its source,
 each axle's locked times and slide energy (brakegym.wsp_test.wsp_test).
 """
 
@@ -36,9 +37,11 @@ def cmd_wsp_test(args: argparse.Namespace) -> int:
         setup=args.setup,
         valves=args.valves,
         control_step_s=args.control_step,
+        load_transfer=args.load_transfer,
     )
     report = result.as_json()
     seed = "nominal" if args.seed is None else f"seed {args.seed}"
+    seed += ", load transfer" if args.load_transfer else ""
     print(
         f"WSP test: {report['vehicle']} {report['load']}, {report['rail']}, WSP {report['wsp']} "
         f"({report['valves']} valves), emergency EP from {report['v0_kmh']:g} km/h, {seed}"
@@ -94,6 +97,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         type=finite_positive("--control-step"),
         default=DEFAULT_WSP_CONTROL_STEP_S,
         help=f"WSP control and integration step in s (default {DEFAULT_WSP_CONTROL_STEP_S})",
+    )
+    p.add_argument(
+        "--load-transfer",
+        action="store_true",
+        help="move load between the bogies and axles as the train decelerates (the vehicle's "
+        "wheelsets.car_geometry; docs/adhesion.md)",
     )
     p.add_argument("--json", help="write the results as JSON")
     p.add_argument("--figure", help="write speeds, pressures, creeps and adhesion over time (PNG)")

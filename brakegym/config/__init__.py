@@ -30,6 +30,7 @@ from .library import (
 from .schema import (
     BrakeMode,
     Caliper,
+    CarGeometry,
     ConfigError,
     ConvectionLaw,
     DiscThermal,
@@ -81,6 +82,7 @@ __all__ = [
     "ScatterSetup",
     "StrictModel",
     "Vehicle",
+    "CarGeometry",
     "Wheelsets",
     "WspValves",
     "VehicleLoad",

@@ -204,6 +204,28 @@ class WheelRailContactConfig(StrictModel):
     shear_modulus_Pa: float = Field(default=8.0e10, gt=0)
 
 
+class CarGeometry(StrictModel):
+    """What moves load between a vehicle's axles while it brakes (docs/adhesion.md, "Load
+    transfer"): each car body's centre-of-gravity height above the rail, the spacing of its two
+    bogies' pivots, the bogie wheelbase, a complete bogie's mass (frame and wheelsets) and its
+    centre-of-gravity height. Cars have two bogies each."""
+
+    body_cg_height_m: float = Field(gt=0, lt=5)
+    bogie_pivot_spacing_m: float = Field(gt=0, lt=40)
+    bogie_wheelbase_m: float = Field(gt=0, lt=5)
+    bogie_mass_kg: float = Field(ge=0)
+    bogie_cg_height_m: float = Field(gt=0, lt=2)
+
+    @model_validator(mode="after")
+    def _wheelbase_within_pivots(self) -> CarGeometry:
+        if not self.bogie_wheelbase_m < self.bogie_pivot_spacing_m:
+            raise ValueError(
+                f"bogie_wheelbase_m {self.bogie_wheelbase_m} must be shorter than "
+                f"bogie_pivot_spacing_m {self.bogie_pivot_spacing_m}"
+            )
+        return self
+
+
 class Wheelsets(StrictModel):
     """What the adhesion option needs of a vehicle's wheelsets (docs/adhesion.md). The default
     inertia is ASSUMED: the spin inertia of the Manchester benchmark wheelset (about 110 kg m^2)
@@ -212,6 +234,8 @@ class Wheelsets(StrictModel):
 
     inertia_kgm2: float = Field(default=130.0, gt=0)
     contact: WheelRailContactConfig = WheelRailContactConfig()
+    # Needed only by the load-transfer option of the adhesion model; none: the option is refused.
+    car_geometry: CarGeometry | None = None
 
 
 BrakeMode = Literal["emergency", "service"]
@@ -237,6 +261,15 @@ class Vehicle(StrictModel):
     ambient_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
     initial_disc_temperature_C: float = Field(gt=-ZERO_CELSIUS_K)
     wheelsets: Wheelsets = Wheelsets()
+
+    @model_validator(mode="after")
+    def _cars_of_two_bogies(self) -> Vehicle:
+        if self.wheelsets.car_geometry is not None and self.bogies % 2:
+            raise ValueError(
+                f"wheelsets.car_geometry: {self.bogies} bogies; cars of two bogies each need an even "
+                "number (articulated trains are not modelled)"
+            )
+        return self
 
     @model_validator(mode="after")
     def _pressures_consistent(self) -> Vehicle:

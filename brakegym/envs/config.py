@@ -58,13 +58,16 @@ class WheelRailOption(cfg.StrictModel):
     the rail in one condition throughout (``rail_condition``, a name of
     ``configs/rail_conditions/``) or a line of sections (``line``, a name of ``configs/lines/``),
     exactly one of the two; the WSP valves (``wsp_valves``, a name of ``configs/wsp_valves/``); and
-    the wheel-speed sensors' Gaussian noise and resolution (the speed a reading is rounded to)."""
+    the wheel-speed sensors' Gaussian noise and resolution (the speed a reading is rounded to);
+    and whether load moves between the bogies and axles as the trains decelerate
+    (``load_transfer``, docs/adhesion.md; off by default)."""
 
     rail_condition: str | None = None
     line: str | None = None
     wsp_valves: str
     wheel_speed_noise_mps: float = Field(ge=0)
     wheel_speed_resolution_mps: float = Field(ge=0)
+    load_transfer: bool = False
 
     @model_validator(mode="after")
     def _one_rail(self) -> WheelRailOption:

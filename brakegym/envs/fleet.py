@@ -123,7 +123,7 @@ class TrainFleet:
                 if option.rail_condition is not None
                 else cfg.load("lines", option.line)
             )
-            self.adhesion = wheel_rail_adhesion(self.vehicle, rail)
+            self.adhesion = wheel_rail_adhesion(self.vehicle, rail, option.load_transfer)
             valves = cfg.load("wsp_valves", option.wsp_valves)
             self.valve_of_axle = valve_of_axle(self.vehicle, valves)
             self.pressure = ValvedPressure(self.pressure, wsp_valve(valves), self.valve_of_axle)

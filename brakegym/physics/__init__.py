@@ -4,6 +4,7 @@
 - :mod:`.thermal`: the two-capacity disc temperature model (paper Eqs. 5-10).
 - :mod:`.mechanics`: brake force, sliding speed and running resistance (paper Eqs. 11, 12, 14).
 - :mod:`.adhesion`: wheel-rail creep and Polach's creep-force law (docs/adhesion.md).
+- :mod:`.load_transfer`: the axle loads' change with the deceleration, between and within bogies.
 - :mod:`.pneumatics`: brake cylinder (dead time and lag) and caliper (spec Section 4).
 - :mod:`.scatter`: the stochastic friction set-ups DS, MCS-100, MCS-75/25 (paper Eq. 13).
 
@@ -14,6 +15,7 @@ job), and nothing here reads configs: :mod:`brakegym.plants` builds these object
 
 from .adhesion import PolachLaw, RailSections, WheelRailContact, static_friction_factor
 from .friction import FrictionLaw
+from .load_transfer import LoadTransfer
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
 from .pneumatics import BrakeCylinder, CaliperLaw, WheelSlideProtectionValve
 from .scatter import (
@@ -36,6 +38,7 @@ __all__ = [
     "FrictionDraw",
     "FrictionLaw",
     "HeatFlows",
+    "LoadTransfer",
     "PolachLaw",
     "RailSections",
     "static_friction_factor",

@@ -144,6 +144,10 @@ N_LAW_PARAMETERS = 5
 # STATIC_FRICTION_FACTOR scales every section's mu_0 for that train (its rail's scatter; 1: the rail's own).
 MASS_KG, BODY_MASS_KG, WHEEL_LOAD_N, CREEP_STIFFNESS_N, STATIC_FRICTION_FACTOR = range(5)
 N_WHEELSET_CONSTANTS = 5
+# With load transfer (scheme[LOAD_TRANSFER] = 1) A more rows follow from AXLE_LOAD_GAIN: how much
+# each axle's wheel load rises per m/s^2 of the train's deceleration (N s^2/m), then A rows from
+# AXLE_LOAD_GAIN + A: each axle's wheel load at the end of the last step (N), written by the kernel.
+AXLE_LOAD_GAIN = N_WHEELSET_CONSTANTS
 
 # Entries of the scheme's parameter vector.
 (
@@ -152,8 +156,9 @@ N_WHEELSET_CONSTANTS = 5
     REGULARISATION_SPEED_MPS,
     WHEELSET_MASS_KG,
     WHEEL_RADIUS_M,
-) = range(5)
-N_SCHEME_PARAMETERS = 5
+    LOAD_TRANSFER,
+) = range(6)
+N_SCHEME_PARAMETERS = 6
 
 
 # ------------------------------------------------------------------------------------------------
@@ -201,6 +206,81 @@ def _creep_forces(
         slope_N[axle] = (2.0 * wheel_load_N) * creep_slope_at_fixed_friction(
             s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
         )
+
+
+@numba.njit(**JIT_OPTIONS)
+def _transferred_loads(speed_mps, force_N, loads, constants, wheel_load_N, stiffness_N):
+    """Each axle's wheel load and creep stiffness (A,) at the train's deceleration
+    (sum of F + F_R(v)) / M with the creep forces ``force_N`` (A,): the static load plus each
+    axle's gain times the deceleration, the stiffness scaled as the Hertz semi-axes, with the cube
+    root of the load (G pi a b c_11 / 4 goes as the load to the 2/3). Stored as the train's current
+    loads."""
+    n_axles = force_N.shape[0]
+    force_sum = 0.0
+    for axle in range(n_axles):
+        force_sum += force_N[axle]
+    resistance = running_resistance_N(
+        speed_mps, constants[RESISTANCE_A_N], constants[RESISTANCE_B_N_PER_MPS], constants[RESISTANCE_C_N_PER_MPS2]
+    )
+    # A train at standstill does not decelerate (the resistance's A would read as a deceleration).
+    deceleration = (force_sum + resistance) / loads[BODY_MASS_KG] if speed_mps > 0.0 else 0.0
+    static_load, static_stiffness = loads[WHEEL_LOAD_N], loads[CREEP_STIFFNESS_N]
+    for axle in range(n_axles):
+        load = static_load + loads[AXLE_LOAD_GAIN + axle] * deceleration
+        wheel_load_N[axle] = load
+        stiffness_N[axle] = static_stiffness * (load / static_load) ** (2.0 / 3.0)
+        loads[AXLE_LOAD_GAIN + n_axles + axle] = load
+
+
+@numba.njit(**JIT_OPTIONS)
+def _creep_forces_per_axle(
+    speed_mps,
+    wheel_speed_mps,
+    axle_wheel_load_N,
+    axle_stiffness_N,
+    friction_factor,
+    scheme,
+    laws,
+    sections,
+    force_N,
+    slope_N,
+):
+    """:func:`_creep_forces` with each axle at its own wheel load and creep stiffness (A,) (load
+    transfer; the static loads keep :func:`_creep_forces`, whose loop this is)."""
+    regularisation = scheme[REGULARISATION_SPEED_MPS]
+    for axle in range(force_N.shape[0]):
+        wheel_load_N, stiffness_N = axle_wheel_load_N[axle], axle_stiffness_N[axle]
+        law = laws[sections[axle]]
+        u = wheel_speed_mps[axle]
+        slip = speed_mps - u
+        s = creep(speed_mps, u, regularisation)
+        mu0 = law[STATIC_FRICTION] * friction_factor
+        ratio, decay = law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
+        reduction_a, reduction_s = law[ADHESION_REDUCTION], law[SLIP_REDUCTION]
+        coefficient = adhesion_coefficient(
+            s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
+        )
+        force_N[axle] = 2.0 * (wheel_load_N * coefficient)
+        slope_N[axle] = (2.0 * wheel_load_N) * creep_slope_at_fixed_friction(
+            s, slip, wheel_load_N, stiffness_N, mu0, ratio, decay, reduction_a, reduction_s
+        )
+
+
+@numba.njit(**JIT_OPTIONS)
+def _transferred_creep_forces(
+    speed_mps, wheel_speed_mps, friction_factor, scheme, laws, sections, loads, constants, work, force_N, slope_N
+):
+    """The creep forces and slopes (A,) with load transfer: at the wheel loads in hand
+    (``work[WHEEL_LOAD]``, ``work[CREEP_STIFFNESS]``), then, with the loads taken to the
+    deceleration these forces give (:func:`_transferred_loads`, explicit), again at the new loads."""
+    wheel_load_N, stiffness_N = work[WHEEL_LOAD], work[CREEP_STIFFNESS]
+    _creep_forces_per_axle(
+        speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
+    )
+    _transferred_loads(speed_mps, force_N, loads, constants, wheel_load_N, stiffness_N)
+    _creep_forces_per_axle(
+        speed_mps, wheel_speed_mps, wheel_load_N, stiffness_N, friction_factor, scheme, laws, sections, force_N, slope_N
+    )
 
 
 @numba.njit(**JIT_OPTIONS)
@@ -441,8 +521,10 @@ def _disc_rates(parameters, train, disc, wheel_speed_mps, speed_mps, clamp_N, po
     CLAMP,
     SLIP_POWER,
     NEW_SLIP_POWER,
-) = range(9)
-N_AXLE_WORK = 9
+    WHEEL_LOAD,
+    CREEP_STIFFNESS,
+) = range(11)
+N_AXLE_WORK = 11
 
 
 @numba.njit(**JIT_OPTIONS)
@@ -471,11 +553,22 @@ def _substeps(
     u, u_new, force, slope = work[WHEEL_SPEED], work[NEW_WHEEL_SPEED], work[FORCE], work[SLOPE]
     pressure, clamp, slip_power, new_slip_power = work[PRESSURE], work[CLAMP], work[SLIP_POWER], work[NEW_SLIP_POWER]
     wheel_load, stiffness = loads[WHEEL_LOAD_N], loads[CREEP_STIFFNESS_N]
+    transfer = scheme[LOAD_TRANSFER] != 0.0
+    if transfer:  # the loads at the end of the last step
+        for axle in range(u.shape[0]):
+            load = loads[AXLE_LOAD_GAIN + u.shape[0] + axle]
+            work[WHEEL_LOAD, axle] = load
+            work[CREEP_STIFFNESS, axle] = stiffness * (load / wheel_load) ** (2.0 / 3.0)
     friction_factor = loads[STATIC_FRICTION_FACTOR]
     middle_speed, stop_fraction = rows[SPEED], math.nan
     middle_wheels = u.copy()
     _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-    _creep_forces(rows[SPEED], u, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
+    if transfer:
+        _transferred_creep_forces(
+            rows[SPEED], u, friction_factor, scheme, laws, sections, loads, constants, work, force, slope
+        )
+    else:
+        _creep_forces(rows[SPEED], u, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
     _clamp_forces(parameters, stage_pressure_bar[0, train], clamp)
     resistance_power, mu_eff_speed = _substep_powers(
         parameters, rows[SPEED], u, clamp, force, loads, constants, slip_power
@@ -496,7 +589,12 @@ def _substeps(
         weight = 0.5 * delta * theta
         rows[POSITION] += weight * (v0 + v_new)
         _axle_laws(rows[POSITION], section_starts_m, axle_offsets_m, sections)
-        _creep_forces(v_new, u_new, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
+        if transfer:
+            _transferred_creep_forces(
+                v_new, u_new, friction_factor, scheme, laws, sections, loads, constants, work, force, slope
+            )
+        else:
+            _creep_forces(v_new, u_new, wheel_load, stiffness, friction_factor, scheme, laws, sections, force, slope)
         new_resistance, new_mu_eff = _substep_powers(
             parameters, v_new, u_new, clamp, force, loads, constants, new_slip_power
         )
@@ -684,7 +782,8 @@ def adhesion_step(arguments, start, moving, hold_standing, end, moving_end, stop
 
     ``arguments``: (plant parameters (:func:`.kernel.plant_parameters`), scheme parameters
     (N_SCHEME_PARAMETERS,), power coefficients (A, k, B), train constants (N_TRAIN_CONSTANTS, B),
-    wheelset constants (N_WHEELSET_CONSTANTS, B), the rail (section starts (S,), their laws
+    wheelset constants (N_WHEELSET_CONSTANTS, B; with load transfer 2 A rows more, see
+    AXLE_LOAD_GAIN, the second A of them written at the step's end), the rail (section starts (S,), their laws
     (S, N_LAW_PARAMETERS), axle offsets behind the train's position (A,)), the cylinder pressures
     at the step's start, middle and end (3, B, A)). ``start`` and ``end``: the (disc, train,
     wheelset) states before and after the step. With ``hold_standing`` a train standing at the

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..physics import PolachLaw, RailSections, RunningResistanceLaw, WheelRailContact
 from ..physics.adhesion import creep
+from ..physics.load_transfer import LoadTransfer
 from ..units import STANDARD_GRAVITY_MPS2
 from . import wheelset_kernel
 from .integrator import Simulator, StepRecord
@@ -55,7 +56,8 @@ class WheelRailAdhesion:
     substep, how far behind the train's position each axle runs (m, one per axle; all at the
     train's position if not given), which decides when each axle enters a section, and each
     train's own rail: a factor on every section's mu_0, one per train of the batch (a campaign's
-    scatter of the rail, docs/adhesion.md; none: every train on the rail as given)."""
+    scatter of the rail, docs/adhesion.md; none: every train on the rail as given), and the load
+    transfer between the axles while braking (none: every wheel carries the static share)."""
 
     law: PolachLaw | RailSections
     contact: WheelRailContact
@@ -64,6 +66,7 @@ class WheelRailAdhesion:
     max_substep_s: float = DEFAULT_MAX_SUBSTEP_S
     axle_offsets_m: tuple[float, ...] | None = None
     static_friction_factor: tuple[float, ...] | None = None
+    load_transfer: LoadTransfer | None = None
 
     def __post_init__(self) -> None:
         if self.static_friction_factor is not None and not all(
@@ -137,9 +140,18 @@ class AdhesionSimulator(Simulator):
         self.scheme_parameters[wheelset_kernel.REGULARISATION_SPEED_MPS] = adhesion.regularisation_speed_mps
         self.scheme_parameters[wheelset_kernel.WHEELSET_MASS_KG] = self.wheelset_mass_kg
         self.scheme_parameters[wheelset_kernel.WHEEL_RADIUS_M] = plant.wheel_radius_m
+        transfer = adhesion.load_transfer
+        if transfer is not None and transfer.n_axles != plant.n_axles:
+            raise ValueError(
+                f"load transfer of {transfer.bogies} bogies x {transfer.axles_per_bogie} axles on a plant "
+                f"of {plant.n_axles} axles"
+            )
+        self.scheme_parameters[wheelset_kernel.LOAD_TRANSFER] = 0.0 if transfer is None else 1.0
         self.rail_table = adhesion.rail_table(plant.n_axles)
         # Per train, what the kernel reads (rows wheelset_kernel.MASS_KG, ...).
-        self.wheelset_constants = np.empty((wheelset_kernel.N_WHEELSET_CONSTANTS, self.n_trains))
+        # With load transfer, each axle's gain and current wheel load follow (wheelset_kernel.AXLE_LOAD_GAIN).
+        rows = wheelset_kernel.N_WHEELSET_CONSTANTS + (0 if transfer is None else 2 * plant.n_axles)
+        self.wheelset_constants = np.empty((rows, self.n_trains))
         factor = adhesion.static_friction_factor
         if factor is not None and len(factor) != self.n_trains:
             raise ValueError(f"static_friction_factor: {len(factor)} factors for {self.n_trains} trains")
@@ -164,6 +176,12 @@ class AdhesionSimulator(Simulator):
         self.wheelset_constants[wheelset_kernel.CREEP_STIFFNESS_N, index] = self.adhesion.contact.creep_stiffness_N(
             wheel_load
         )
+        transfer = self.adhesion.load_transfer
+        if transfer is not None:
+            gain = wheelset_kernel.AXLE_LOAD_GAIN
+            # Per wheel: half the axle's gain.
+            self.wheelset_constants[gain : gain + plant.n_axles, index] = 0.5 * transfer.axle_load_gain_N_per_mps2(body)
+            self.wheelset_constants[gain + plant.n_axles :, index] = wheel_load
         self.wheelset[:, :, index] = 0.0
         self.wheelset[ANGULAR_SPEED][:, index] = self.train[SPEED, index] / plant.wheel_radius_m
 
@@ -183,8 +201,25 @@ class AdhesionSimulator(Simulator):
 
     @property
     def wheel_load_N(self) -> np.ndarray:
-        """The static load of each wheel per train, N."""
+        """The static load of each wheel per train, N (:attr:`axle_wheel_load_N`: each axle's own)."""
         return self.wheelset_constants[wheelset_kernel.WHEEL_LOAD_N]
+
+    @property
+    def axle_wheel_load_N(self) -> np.ndarray:
+        """The wheel load of each axle and train in N, shaped (A, B). Without load transfer the
+        static share; with it, the load at the current state (written by the kernel at the end of
+        each step)."""
+        if self.adhesion.load_transfer is None:
+            return np.broadcast_to(self.wheel_load_N, (self.plant.n_axles, self.n_trains))
+        first = wheelset_kernel.AXLE_LOAD_GAIN + self.plant.n_axles
+        return self.wheelset_constants[first : first + self.plant.n_axles]
+
+    @property
+    def axle_creep_stiffness_N(self) -> np.ndarray:
+        """Each axle's creep stiffness (A, B) at its :attr:`axle_wheel_load_N`, N."""
+        if self.adhesion.load_transfer is None:
+            return np.broadcast_to(self.creep_stiffness_N, (self.plant.n_axles, self.n_trains))
+        return self.creep_stiffness_N * (self.axle_wheel_load_N / self.wheel_load_N) ** (2.0 / 3.0)
 
     @property
     def creep_stiffness_N(self) -> np.ndarray:
@@ -214,7 +249,9 @@ class AdhesionSimulator(Simulator):
         turns slower than it runs; ``law`` from :meth:`WheelRailAdhesion.law_at`."""
         slip = speed_mps - wheel_speed_mps
         s = creep(speed_mps, wheel_speed_mps, self.adhesion.regularisation_speed_mps)
-        return 2.0 * law.creep_force_N(s, slip, self.wheel_load_N, self.creep_stiffness_N)
+        if self.adhesion.load_transfer is None:
+            return 2.0 * law.creep_force_N(s, slip, self.wheel_load_N, self.creep_stiffness_N)
+        return 2.0 * law.creep_force_N(s, slip, self.axle_wheel_load_N, self.axle_creep_stiffness_N)
 
     # ----------------------------------------------------------------------------------------
     def _step_once(self) -> StepRecord:

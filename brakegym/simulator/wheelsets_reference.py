@@ -43,7 +43,15 @@ class _Substeps:
 
 
 class NumpyAdhesionSimulator(AdhesionSimulator):
-    """:class:`~.wheelsets.AdhesionSimulator` stepped in numpy array operations."""
+    """:class:`~.wheelsets.AdhesionSimulator` stepped in numpy array operations (without load
+    transfer: the compiled kernel alone has it)."""
+
+    def __init__(self, plant, conditions, pressure, adhesion, *args, **kwargs) -> None:
+        if adhesion.load_transfer is not None:
+            raise ValueError(
+                "NumpyAdhesionSimulator: load transfer is not in the numpy reference; use AdhesionSimulator"
+            )
+        super().__init__(plant, conditions, pressure, adhesion, *args, **kwargs)
 
     def _creep_force_and_slope(self, speed_mps: np.ndarray, wheel_speed_mps: np.ndarray, law: PolachLaw):
         """The axle forces (A, B) and their slope dF/ds at fixed friction (A, B), N per unit creep."""
