@@ -77,6 +77,20 @@ def test_rail_campaign_the_same_whatever_the_executor_and_chunk_size(
     pd.testing.assert_frame_equal(result, low_reference, check_exact=True)
 
 
+def test_rail_campaign_with_load_transfer_is_its_own_and_the_same_whatever_the_chunks(
+    small_campaign, wsp_config, low_reference
+):
+    """The option reaches every stop (the WSP's valves then act out of step, so the slide energy
+    changes) and leaves the rail's draw alone; its rows too are the same in any chunks."""
+    transferred = _low_campaign(small_campaign, wsp_config, chunk_size=1000, load_transfer=True)
+    again = _low_campaign(small_campaign, wsp_config, chunk_size=5, load_transfer=True)
+    pd.testing.assert_frame_equal(again, transferred, check_exact=True)
+    np.testing.assert_array_equal(transferred.rail_friction_factor, low_reference.rail_friction_factor)
+    assert not np.array_equal(transferred.slide_energy_MJ, low_reference.slide_energy_MJ)
+    # The same rail and brake: the stops move by the WSP's response to unequal loads, not more.
+    np.testing.assert_allclose(transferred.braking_distance_m, low_reference.braking_distance_m, rtol=0.05)
+
+
 def test_rail_campaign_rows_are_the_field_campaigns_stops_on_a_scattered_rail(small_campaign, low_reference):
     """The same applications and running-resistance draws as the field campaign (the rail's draw
     has a stream of its own), the rail columns added; each stop's mu_0 is the condition's times its
@@ -152,7 +166,8 @@ def test_static_friction_for_a_peak_adhesion_inverts_peak_adhesion(name, load):
 def test_rail_options_only_where_they_apply(capsys):
     for args, message in (
         (["mcs", "--campaign", "dyno", "--condition", "low"], "--condition and --line are for the field campaign"),
-        (["mcs", "--campaign", "field", "--wsp", "none"], "--wsp and --wsp-valves need a rail"),
+        (["mcs", "--campaign", "field", "--wsp", "none"], "--wsp, --wsp-valves and --load-transfer need a rail"),
+        (["mcs", "--campaign", "field", "--load-transfer"], "--wsp, --wsp-valves and --load-transfer need a rail"),
         (["mcs", "--campaign", "field", "--condition", "icy"], "unknown rail condition 'icy'"),
     ):
         assert main(args) == 2

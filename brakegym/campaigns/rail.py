@@ -23,6 +23,7 @@ from ..applications import TrainApplication
 from ..defaults import DEFAULT_CHUNK_STOPS
 from ..execution import Executor
 from ..execution.base import Progress
+from ..plants import load_transfer as vehicle_load_transfer
 from ..plants import (
     polach_law,
     rail_conditions_of,
@@ -66,7 +67,8 @@ def governing_condition(vehicle: cfg.Vehicle, rail: cfg.RailCondition | cfg.Line
 class RailFieldChunkTask:
     """The stops of a chunk of a field campaign on a rail, from the seed and the stops' numbers
     alone; ``wsp`` the controller's config (:class:`brakegym.agents.wsp.WspControllerConfig`) or
-    None (no WSP, the valves at rest)."""
+    None (no WSP, the valves at rest); ``load_transfer``: the axle loads move between and within
+    the bogies with the deceleration (docs/adhesion.md, "Load transfer")."""
 
     vehicle: cfg.Vehicle
     applications: tuple[TrainApplication, ...]
@@ -77,6 +79,7 @@ class RailFieldChunkTask:
     valves: cfg.WspValves
     wsp: object | None
     control_step_s: float = DEFAULT_CONTROL_STEP_S
+    load_transfer: bool = False
 
     def __call__(self, chunk: Chunk) -> dict[str, dict[str, np.ndarray]]:
         stop = chunk.sample_index()
@@ -85,7 +88,8 @@ class RailFieldChunkTask:
         draw, resistance = train_scatter(self.vehicle, self.setup).draw_for_samples(self.seed, stop)
         factor = rail_friction_factor_for_samples(self.rail, self.seed, stop)
         adhesion = dataclasses.replace(
-            wheel_rail_adhesion(self.vehicle, self.rail), static_friction_factor=tuple(factor.tolist())
+            wheel_rail_adhesion(self.vehicle, self.rail, with_load_transfer=self.load_transfer),
+            static_friction_factor=tuple(factor.tolist()),
         )
         make_controller = None
         if self.wsp is not None:
@@ -144,17 +148,30 @@ def rail_field_campaign(
     chunk_size: int = DEFAULT_CHUNK_STOPS,
     out: str | Path | None = None,
     resume: bool = False,
+    load_transfer: bool = False,
 ) -> FieldCampaignResult:
     """:func:`~.field.field_campaign` on ``rail`` (a rail condition or a line), with wheel-rail
     adhesion, each stop's rail scattered, through the WSP ``valves`` commanded by the controller
     of config ``wsp`` (:func:`brakegym.agents.wsp.load_wsp_config`; None: no WSP), at the step
-    ``control_step_s``. The result's rows have the field campaign's columns and
-    :data:`RAIL_STOP_COLUMNS`."""
+    ``control_step_s``, with the axle loads' transfer during braking where ``load_transfer``
+    (the vehicle needs its ``car_geometry``). The result's rows have the field campaign's columns
+    and :data:`RAIL_STOP_COLUMNS`."""
     vehicle = cfg.load("vehicles", campaign.vehicle)
     applications = field_applications(campaign)
     task = RailFieldChunkTask(
-        vehicle, tuple(applications), campaign.repetitions, setup, seed, rail, valves, wsp, control_step_s
+        vehicle,
+        tuple(applications),
+        campaign.repetitions,
+        setup,
+        seed,
+        rail,
+        valves,
+        wsp,
+        control_step_s,
+        load_transfer,
     )
+    if load_transfer:
+        vehicle_load_transfer(vehicle)  # a vehicle without its car geometry fails here, not in a worker
     chunks = even_chunks(len(applications) * campaign.repetitions, chunk_size)
     store = None
     if out is not None:
@@ -165,6 +182,7 @@ def rail_field_campaign(
         configs["rail_conditions"] = [c.model_dump(mode="json") for c in rail_conditions_of(rail)]
         configs["wsp_valves"] = valves.model_dump(mode="json")
         configs["wsp"] = None if wsp is None else wsp.model_dump(mode="json")
+        configs["load_transfer"] = load_transfer
         manifest["campaign"] = "field-rail"
         manifest["tables"] = {STOPS: [*STOP_COLUMNS, *RAIL_STOP_COLUMNS]}
         store = CampaignStore.open(out, manifest, resume)

@@ -113,8 +113,8 @@ def cmd_mcs(args: argparse.Namespace) -> int:
     on_rail = args.condition is not None or args.line is not None
     if args.campaign == "dyno" and on_rail:
         raise UsageError("--condition and --line are for the field campaign (train stops on a rail)")
-    if not on_rail and (args.wsp is not None or args.wsp_valves is not None):
-        raise UsageError("--wsp and --wsp-valves need a rail: --condition or --line")
+    if not on_rail and (args.wsp is not None or args.wsp_valves is not None or args.load_transfer):
+        raise UsageError("--wsp, --wsp-valves and --load-transfer need a rail: --condition or --line")
     if args.step is None:
         args.step = DEFAULT_WSP_CONTROL_STEP_S if on_rail else DEFAULT_STEP_S
     if args.campaign == "dyno" and args.chunk_size is not None:
@@ -268,6 +268,7 @@ def _rail_field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor)
             chunk_size=args.chunk_size or DEFAULT_CHUNK_STOPS,
             out=args.out,
             resume=args.resume,
+            load_transfer=args.load_transfer,
         )
     summary = result.application_summary()
     rail_columns = ["braking_distance_m", "rail_peak_adhesion", "slide_energy_MJ", "longest_locked_s"]
@@ -295,6 +296,7 @@ def _rail_field_mcs(args: argparse.Namespace, setup: cfg.ScatterSetup, executor)
         "rail_kind": "condition" if args.condition else "line",
         "wsp": wsp_name if wsp is None or wsp_name == "reference" else wsp.name,
         "wsp_valves": valves.name,
+        "load_transfer": args.load_transfer,
         "rail_peak_adhesion_mean": float(rows["rail_peak_adhesion"].mean()),
         "slide_energy_MJ_mean": float(rows["slide_energy_MJ"].mean()),
         "longest_locked_s_max": float(rows["longest_locked_s"].max()),
@@ -440,6 +442,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "default reference, none when every section is dry (a low-adhesion rail without WSP locks every wheel)",
     )
     rail.add_argument("--wsp-valves", metavar="NAME", help="WSP valves (configs/wsp_valves: axle, bogie; default axle)")
+    rail.add_argument(
+        "--load-transfer",
+        action="store_true",
+        help="the axle loads move between and within the bogies with the deceleration (docs/adhesion.md)",
+    )
     add_execution_options(p)
     p.set_defaults(func=cmd_mcs)
 
