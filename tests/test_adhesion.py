@@ -127,6 +127,24 @@ def test_force_is_odd_in_creep():
     assert DRY.creep_force_N(0.0, 0.0, WHEEL_LOAD_N, STIFFNESS_N) == 0.0
 
 
+@pytest.mark.parametrize("name", ["dry", "wet", "low"])
+@pytest.mark.parametrize("factor", [0.6, 1.3, 2.0])
+def test_mu_0_times_f_peaks_at_f_times_the_nominal_peak_at_f_times_the_speed(name, factor):
+    """Polach's F / Q is (2 mu / pi) G(C s / (Q mu)), mu = mu_0 ((1 - A) exp(-B s v) + A): with
+    mu_0 times f, the creep s = f s' gives f times the nominal F / Q at creep s' and speed f v, so
+    the peak at v is f times the nominal peak at f v (what the environment's ideal distance uses
+    for a scattered rail). Up to the creep grid's resolution; an array of speeds gives each
+    speed's own peak."""
+    law = polach_law(cfg.load("rail_conditions", name))
+    scaled = dataclasses.replace(law, static_friction=factor * law.static_friction)
+    speeds = np.array([1.0, 10.0, 30.0, 45.0])
+    peak_scaled, _ = scaled.peak_adhesion(speeds, WHEEL_LOAD_N, STIFFNESS_N)
+    peak_nominal, _ = law.peak_adhesion(factor * speeds, WHEEL_LOAD_N, STIFFNESS_N)
+    np.testing.assert_allclose(peak_scaled, factor * peak_nominal, rtol=1e-6)
+    one_by_one = [scaled.peak_adhesion(v, WHEEL_LOAD_N, STIFFNESS_N)[0] for v in speeds]
+    np.testing.assert_array_equal(peak_scaled, one_by_one)
+
+
 # ------------------------------------------------------------------------------------------------
 # Rail conditions and the vehicle's wheelsets as configs
 

@@ -4,6 +4,7 @@ the WSP controllers of one kind."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import warnings
 from pathlib import Path
@@ -130,15 +131,71 @@ def test_no_stop_is_shorter_than_the_adhesion_limit(short_stops):
     )
     resistance_N = vehicle.running_resistance.A_N + vehicle.running_resistance.B_N_per_mps * v0
     resistance_N += vehicle.running_resistance.C_N_per_mps2 * v0**2
-    largest_mps2 = (
-        rail.static_friction * (1 + 1 / np.pi) * 9.80665 + resistance_N / vehicle.mass_kg("empty")
-    ) / body_share
     for stops in short_stops.values():
+        # Each episode's own rail: mu_0 times its factor (rail_scatter).
+        mu_0 = rail.static_friction * stops["rail_friction_factor"]
+        largest_mps2 = (mu_0 * (1 + 1 / np.pi) * 9.80665 + resistance_N / vehicle.mass_kg("empty")) / body_share
         assert np.all(stops["ideal_braking_distance_m"] >= v0**2 / (2 * largest_mps2))
         assert np.all(stops["braking_distance_m"] >= stops["ideal_braking_distance_m"])
     # The reference WSP comes within half of the limit (its valve cycles cost most at low speed;
     # about 20 % above it from 120 km/h, docs/adhesion.md).
     assert np.all(short_stops["wsp"]["braking_distance_m"] <= 1.5 * short_stops["wsp"]["ideal_braking_distance_m"])
+
+
+def test_each_episode_draws_its_rail_from_its_key_with_the_conditions_scatter():
+    """With rail_scatter each episode's factor on the rail's mu_0 is lognormal, mean 1, with the
+    low rail's relative sigma (0.15), drawn from the episode's key (a train's is the same in any
+    batch); the reset option fixes it; without rail_scatter every factor is 1 and another one is
+    refused, as is a factor that is not positive."""
+    sigma = cfg.load("rail_conditions", "low").static_friction_relative_sigma
+    env = BrakeVectorEnv(ENV_ID, num_envs=400, autoreset=False)
+    _, info = env.reset(seed=3)
+    factor = info["rail_friction_factor"]
+    assert np.all(factor > 0)
+    assert abs(factor.mean() - 1.0) < 3 * sigma / np.sqrt(len(factor))
+    assert abs(factor.std() / sigma - 1.0) < 0.15  # 4 standard errors of a standard deviation of 400
+    _, alone = BrakeVectorEnv(ENV_ID, num_envs=1, autoreset=False).reset(seed=3)
+    assert alone["rail_friction_factor"][0] == factor[0]
+    _, fixed = env.reset(seed=3, options={"rail_friction_factor": 0.8})
+    assert np.all(fixed["rail_friction_factor"] == 0.8)
+    assert np.all(env.core.fleet.sim.static_friction_factor == 0.8)
+    with pytest.raises(ValueError, match="must be positive"):
+        env.reset(seed=3, options={"rail_friction_factor": -1.0})
+    fixed_rail = BrakeVectorEnv(ENV_ID, num_envs=4, config={"wheel_rail": {"rail_scatter": False}}, autoreset=False)
+    _, nominal = fixed_rail.reset(seed=3)
+    assert np.all(nominal["rail_friction_factor"] == 1.0)
+    with pytest.raises(ValueError, match="rail_scatter"):
+        fixed_rail.reset(seed=3, options={"rail_friction_factor": 0.8})
+
+
+@pytest.mark.parametrize("factor", [0.7, 1.3, 2.0])
+def test_ideal_distance_on_a_scattered_rail_is_that_of_the_scaled_rails_own_peaks(factor):
+    """The ideal distance of an episode on a rail with mu_0 times f, read from the nominal rail's
+    peak table, is the distance computed from the scaled rail's own peaks, within 0.1 %."""
+    from brakegym.envs.tasks.wheel_slide_protection import adhesion_limited_distance_m
+    from brakegym.plants import polach_law, wheel_rail_contact
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    law = polach_law(cfg.load("rail_conditions", "low"))
+    scaled = dataclasses.replace(law, static_friction=factor * law.static_friction)
+    mass_kg = vehicle.mass_kg("normal")
+    wheel_load_N = mass_kg * 9.80665 / (2 * vehicle.n_axles)
+    stiffness_N = wheel_rail_contact(vehicle).creep_stiffness_N(wheel_load_N)
+    speeds = np.linspace(0.05, 150.0, 600)
+    body_kg = mass_kg - vehicle.n_axles * vehicle.wheelsets.inertia_kgm2 / vehicle.wheel_radius_m**2
+    args = (mass_kg, body_kg, vehicle.running_resistance)
+    from_nominal = adhesion_limited_distance_m(
+        120 / 3.6, factor, speeds, law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+    )
+    own = adhesion_limited_distance_m(
+        120 / 3.6, 1.0, speeds, scaled.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+    )
+    assert from_nominal == pytest.approx(own, rel=1e-3)
+    # More adhesion, a shorter stop.
+    nominal = adhesion_limited_distance_m(
+        120 / 3.6, 1.0, speeds, law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+    )
+    assert (own < nominal) == (factor > 1)
 
 
 def test_reward_terms_sum_to_the_reward_and_penalise_sliding():

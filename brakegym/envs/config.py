@@ -59,8 +59,11 @@ class WheelRailOption(cfg.StrictModel):
     ``configs/rail_conditions/``) or a line of sections (``line``, a name of ``configs/lines/``),
     exactly one of the two; the WSP valves (``wsp_valves``, a name of ``configs/wsp_valves/``); and
     the wheel-speed sensors' Gaussian noise and resolution (the speed a reading is rounded to);
-    and whether load moves between the bogies and axles as the trains decelerate
-    (``load_transfer``, docs/adhesion.md; off by default)."""
+    whether load moves between the bogies and axles as the trains decelerate
+    (``load_transfer``, docs/adhesion.md; off by default); and whether each episode draws its
+    own rail (``rail_scatter``: every section's mu_0 times a lognormal factor of mean 1 and the
+    condition's ``static_friction_relative_sigma``, as a campaign on a rail draws each stop's;
+    off: every episode on the rail as configured)."""
 
     rail_condition: str | None = None
     line: str | None = None
@@ -68,6 +71,7 @@ class WheelRailOption(cfg.StrictModel):
     wheel_speed_noise_mps: float = Field(ge=0)
     wheel_speed_resolution_mps: float = Field(ge=0)
     load_transfer: bool = False
+    rail_scatter: bool = False
 
     @model_validator(mode="after")
     def _one_rail(self) -> WheelRailOption:

@@ -114,6 +114,7 @@ class TrainFleet:
         # With wheel-rail adhesion, the cylinders sit behind WSP valves and every wheelset turns on
         # its own; each episode then draws from its own key (see restart).
         self.adhesion = None
+        self.rail: cfg.RailCondition | cfg.Line | None = None
         self.valve_of_axle = np.zeros(0, dtype=np.int64)
         self.episode_key = np.zeros(n_trains, dtype=np.int64)
         if config.wheel_rail is not None:
@@ -123,7 +124,12 @@ class TrainFleet:
                 if option.rail_condition is not None
                 else cfg.load("lines", option.line)
             )
+            self.rail = rail
             self.adhesion = wheel_rail_adhesion(self.vehicle, rail, option.load_transfer)
+            if option.rail_scatter:
+                # Each episode's factor is written into the simulator's row at restart (the task
+                # draws it); ones here make the simulator scale the rail's law by that row.
+                self.adhesion = dataclasses.replace(self.adhesion, static_friction_factor=(1.0,) * n_trains)
             valves = cfg.load("wsp_valves", option.wsp_valves)
             self.valve_of_axle = valve_of_axle(self.vehicle, valves)
             self.pressure = ValvedPressure(self.pressure, wsp_valve(valves), self.valve_of_axle)

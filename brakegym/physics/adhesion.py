@@ -166,11 +166,17 @@ class PolachLaw:
 
     def peak_adhesion(self, speed_mps, wheel_load_N, creep_stiffness_N_, max_creep=1.0, n_creeps=20001):
         """(the largest F / Q, the creep where it lies) at train speed ``speed_mps``, searched on a
-        logarithmic grid of creeps up to ``max_creep`` (for reports and tests, not the simulator)."""
+        logarithmic grid of creeps up to ``max_creep`` (for reports and tests, not the simulator):
+        two floats for a number, two arrays of its shape for an array of speeds."""
         creeps = np.geomspace(1e-6, max_creep, n_creeps)
-        coefficients = self.adhesion_coefficient(creeps, creeps * speed_mps, wheel_load_N, creep_stiffness_N_)
-        best = int(np.argmax(coefficients))
-        return float(coefficients[best]), float(creeps[best])
+        speed = np.asarray(speed_mps, dtype=float)
+        grid = creeps.reshape(-1, *([1] * speed.ndim))
+        coefficients = self.adhesion_coefficient(grid, grid * speed, wheel_load_N, creep_stiffness_N_)
+        best = np.argmax(coefficients, axis=0)
+        peak = np.take_along_axis(coefficients, best[None], axis=0)[0]
+        if speed.ndim == 0:
+            return float(peak), float(creeps[best])
+        return peak, creeps[best]
 
     def with_peak_adhesion(
         self, peak_adhesion, speed_mps, wheel_load_N, creep_stiffness_N_, tolerance=1e-6, n_creeps=20001

@@ -4,8 +4,9 @@ emergency stop on a rail of low adhesion, to stop as short as possible without s
 The trains run with wheel-rail adhesion (docs/adhesion.md, the config's ``wheel_rail``: the rail in
 one condition throughout, e.g. ``low``, or a line of sections such as ``low_patch``; the valve set,
 one valve per axle or per bogie). Each episode draws the initial speed (``initial_speed_kmh``), the
-load, the discs' friction scatter (``setup``) and a coast (``coast_s``, rounded to control steps)
-after which the brake control asks for the pressure of ``brake_mode`` (emergency) in every
+load, the discs' friction scatter (``setup``), with ``wheel_rail.rail_scatter`` its own rail (every
+section's mu_0 times a lognormal factor of mean 1 and the condition's relative sigma; on a line the
+largest of its sections'), and a coast (``coast_s``, rounded to control steps) after which the brake control asks for the pressure of ``brake_mode`` (emergency) in every
 cylinder; the agent then commands the valves between that pressure and the cylinders at
 ``policy_frequency_hz`` (50 Hz, the 20 ms step of a brake control unit). Every quantity of an
 episode, the sensor noise included, is drawn from the episode's own key, so that a train's episode
@@ -52,8 +53,10 @@ Info: ``braking_distance_m`` (from the brake demand on), ``slide_energy_MJ``,
 ``max_locked_time_s`` (the longest stretch of any axle), ``ideal_braking_distance_m`` (on a
 rail in one condition: the train's speed at the demand times the cylinders' dead time, plus the
 integral of v dv / a_max(v), a_max the rail's peak adhesion at each speed over the body mass with
-the running resistance; a lower bound of every stop; NaN on a line of sections), and
-``brake_demand_s`` (the drawn coast). Reset option ``coast_s`` fixes the coast.
+the running resistance, on the episode's own rail; a lower bound of every stop; NaN on a line of
+sections), ``brake_demand_s`` (the drawn coast) and ``rail_friction_factor`` (the episode's factor
+on the rail's mu_0, 1 without ``rail_scatter``). Reset options ``coast_s`` and
+``rail_friction_factor`` fix the coast and the rail's factor.
 
 Version history: v0, initial release.
 """
@@ -86,9 +89,48 @@ OBSERVATION_BOUND = 5.0
 REFERENCE_DECELERATION_MPS2 = 1.3
 #: Below this speed the relative wheel speeds divide by it.
 MIN_REFERENCE_SPEED_MPS = 1.0
-#: Stream of the task's keyed draws (the coast) and of the sensor noise, derived from the fleet's
-#: episode keys (:mod:`brakegym.envs.fleet`).
-COAST_STREAM, NOISE_STREAM = 11, 12
+#: Streams of the task's keyed draws (the coast, the rail's factor) and of the sensor noise,
+#: derived from the fleet's episode keys (:mod:`brakegym.envs.fleet`).
+COAST_STREAM, NOISE_STREAM, RAIL_STREAM = 11, 12, 13
+#: The peak-adhesion table's speeds reach this multiple of the fastest initial speed: a rail whose
+#: mu_0 is f times the nominal one has at speed v the nominal law's peak at f v, times f
+#: (:func:`adhesion_limited_distance_m`), so the table serves factors up to this.
+PEAK_TABLE_SPEED_RANGE = 3.0
+#: The brake force of the adhesion-limited stop is the peak adhesion times this: the table's creep
+#: grid finds each peak at most one grid step below the true one, and the interpolation between
+#: its speeds errs by far less; 0.5 % up makes the distance a bound from below.
+PEAK_ADHESION_MARGIN = 1.005
+#: Points of the adhesion-limited stop's integral over the speed.
+IDEAL_SPEED_POINTS = 200
+
+
+def adhesion_limited_distance_m(
+    speed_mps: float,
+    rail_friction_factor: float,
+    peak_speeds_mps: np.ndarray,
+    peak_adhesion: np.ndarray,
+    mass_kg: float,
+    body_mass_kg: float,
+    resistance: cfg.RunningResistance,
+) -> float:
+    """The distance from ``speed_mps`` to standstill braked at the rail's peak adhesion at every
+    speed (times :data:`PEAK_ADHESION_MARGIN`), with the running resistance, the train's mass
+    ``mass_kg`` on the rail and its body mass ``body_mass_kg`` to decelerate (the wheelsets brake
+    their own inertia): the integral of v m_body / F(v) dv from 0.05 m/s.
+
+    ``peak_adhesion`` is the nominal rail's peak at ``peak_speeds_mps``. Polach's law with mu_0
+    times f has at speed v f times the nominal law's peak at f v: the creep s = f s' turns its
+    force into f times the nominal one at creep s' and slip speed s' (f v) (tested in
+    tests/test_adhesion.py). Beyond the table's last speed its last peak stands, which is at
+    least the true one (the peak falls with the speed)."""
+    if speed_mps <= 0.05:
+        return 0.0
+    speeds = np.linspace(0.05, speed_mps, IDEAL_SPEED_POINTS)
+    peak = rail_friction_factor * np.interp(rail_friction_factor * speeds, peak_speeds_mps, peak_adhesion)
+    force_N = PEAK_ADHESION_MARGIN * peak * mass_kg * STANDARD_GRAVITY_MPS2
+    force_N += resistance.A_N + resistance.B_N_per_mps * speeds + resistance.C_N_per_mps2 * speeds**2
+    integrand = speeds * body_mass_kg / force_N
+    return float(np.sum(0.5 * (integrand[1:] + integrand[:-1]) * np.diff(speeds)))
 
 
 class WspRewardWeights(cfg.StrictModel):
@@ -203,7 +245,7 @@ class WheelSlideProtection(BrakeTask):
     name = "wheel_slide_protection"
     config_model = WheelSlideProtectionConfig
     metric = ("braking_distance_m", "m")
-    options = ("coast_s",)
+    options = ("coast_s", "rail_friction_factor")
     action_kind = "valves"
     common_observations = False
     stress_quantities = ("slide_energy_MJ", "max_locked_time_s")
@@ -235,37 +277,27 @@ class WheelSlideProtection(BrakeTask):
         self.locked_longest_s = np.zeros((n, axles))
         self.features = BcuFeatures(n, axles, fleet.control_step_s, fleet.max_pressure_bar)
         self.measurement: BcuMeasurement | None = None
-        self.ideal_distance_table = self._ideal_distance_table()
+        self.peak_adhesion_table = self._peak_adhesion_table()
         self.ideal_braking_distance_m = np.full(n, np.nan)
+        self.rail_friction_factor = np.ones(n)
 
     # -------------------------------------------------------------------------------------------
-    def _ideal_distance_table(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(speeds (S,), the adhesion-limited distance from each speed to standstill per load
-        (loads, S)) on a rail in one condition; None on a line of sections."""
+    def _peak_adhesion_table(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(speeds (S,), the nominal rail's peak adhesion at each per load (loads, S)), the speeds
+        up to :data:`PEAK_TABLE_SPEED_RANGE` times the fastest initial speed, on a rail in one
+        condition; None on a line of sections."""
         fleet = self.fleet
         adhesion = fleet.adhesion
         if fleet.config.wheel_rail.rail_condition is None:
             return None
-        vehicle, axles = fleet.vehicle, self.n_axles
-        speeds = np.linspace(0.05, 1.05 * fleet.config.initial_speed_kmh.high / 3.6, 200)
-        resistance = vehicle.running_resistance
-        table = []
+        top_mps = PEAK_TABLE_SPEED_RANGE * 1.05 * fleet.config.initial_speed_kmh.high / 3.6
+        speeds = np.linspace(0.05, top_mps, 3 * IDEAL_SPEED_POINTS)
+        peaks = []
         for load in fleet.vehicle_loads:
-            mass_kg = vehicle.mass_kg(load)
-            wheel_load_N = mass_kg * STANDARD_GRAVITY_MPS2 / (2 * axles)
+            wheel_load_N = fleet.vehicle.mass_kg(load) * STANDARD_GRAVITY_MPS2 / (2 * self.n_axles)
             stiffness_N = adhesion.contact.creep_stiffness_N(wheel_load_N)
-            body_mass_kg = mass_kg - axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
-            peak = np.array(
-                [adhesion.law.peak_adhesion(v, wheel_load_N, stiffness_N, n_creeps=2001)[0] for v in speeds]
-            )
-            # The grid's peak lies at most one grid step below the true one: 0.5 % up makes the
-            # distance a bound from below.
-            force_N = 1.005 * peak * mass_kg * STANDARD_GRAVITY_MPS2
-            force_N += resistance.A_N + resistance.B_N_per_mps * speeds + resistance.C_N_per_mps2 * speeds**2
-            integrand = speeds * body_mass_kg / force_N
-            distance = np.concatenate([[0.0], np.cumsum(0.5 * (integrand[1:] + integrand[:-1]) * np.diff(speeds))])
-            table.append(distance)
-        return speeds, np.array(table)
+            peaks.append(adhesion.law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0])
+        return speeds, np.array(peaks)
 
     def restart(self, index: np.ndarray, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         from ...reliability.streams import derived_seed, uniforms
@@ -281,6 +313,7 @@ class WheelSlideProtection(BrakeTask):
             if np.any(~(coast_s >= 0)):
                 raise ValueError(f"reset option 'coast_s' = {options['coast_s']}: must not be negative")
         self.demand_step[index] = np.round(coast_s / fleet.control_step_s).astype(np.int64)
+        self._set_rail(index, keys, options)
         self.demand_bar[index] = self.demand_by_load_bar[fleet.episodes.load_index[index]]
         self.position_at_demand_m[index] = 0.0
         self.speed_at_demand_mps[index] = fleet.speed_mps[index]
@@ -374,20 +407,61 @@ class WheelSlideProtection(BrakeTask):
         }
         return Outcome(terms, standstill, success)
 
+    def _set_rail(self, index: np.ndarray, keys: np.ndarray, options: Mapping[str, Any]) -> None:
+        """Each restarted train's factor on its rail's mu_0: drawn from its episode key with
+        ``wheel_rail.rail_scatter`` (lognormal, mean 1, as
+        :func:`brakegym.plants.rail_friction_factor_for_samples` draws a campaign's), else 1; the
+        reset option ``rail_friction_factor`` fixes it. Written into the simulator's per-train
+        row, which the compiled step reads."""
+        from ...physics import static_friction_factor
+        from ...plants import rail_static_friction_relative_sigma
+        from ...reliability.streams import derived_seed, standard_normals
+
+        fleet = self.fleet
+        factor = np.ones(len(index))
+        if self.config.wheel_rail.rail_scatter:
+            normals = standard_normals(derived_seed(0, RAIL_STREAM), keys, 1)[:, 0]
+            factor = static_friction_factor(rail_static_friction_relative_sigma(fleet.rail), normals)
+        if "rail_friction_factor" in options:
+            from ..options import option_values
+
+            factor = option_values(options["rail_friction_factor"], len(index), "rail_friction_factor")
+            if not np.all(np.isfinite(factor) & (factor > 0)):
+                raise ValueError(
+                    f"reset option 'rail_friction_factor' = {options['rail_friction_factor']}: must be positive"
+                )
+            if np.any(factor != 1.0) and fleet.adhesion.static_friction_factor is None:
+                raise ValueError(
+                    f"reset option 'rail_friction_factor' = {options['rail_friction_factor']}: environment "
+                    f"{self.config.name!r} runs every train on the rail as configured (wheel_rail.rail_scatter: false)"
+                )
+        self.rail_friction_factor[index] = factor
+        fleet.sim.static_friction_factor[index] = factor
+
     def _set_ideal(self, index: np.ndarray) -> None:
         """The adhesion-limited lower bound of the stops of trains ``index`` (module
-        documentation), from their speed at the brake demand."""
-        if self.ideal_distance_table is None:
+        documentation), from their speed at the brake demand, on each one's rail."""
+        if self.peak_adhesion_table is None:
             self.ideal_braking_distance_m[index] = np.nan
             return
-        speeds, table = self.ideal_distance_table
-        speed = self.speed_at_demand_mps[index]
-        load_index = self.fleet.episodes.load_index[index]
-        braking = np.zeros(len(index))
-        for load, row in enumerate(table):
-            of_load = load_index == load
-            braking[of_load] = np.interp(speed[of_load], speeds, row)
-        self.ideal_braking_distance_m[index] = speed * self.dead_time_s + braking
+        fleet = self.fleet
+        vehicle = fleet.vehicle
+        speeds, peaks = self.peak_adhesion_table
+        wheelsets_kg = self.n_axles * fleet.adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
+        for train in index:
+            load = fleet.episodes.load_index[train]
+            mass_kg = vehicle.mass_kg(fleet.vehicle_loads[load])
+            speed = self.speed_at_demand_mps[train]
+            braking = adhesion_limited_distance_m(
+                speed,
+                self.rail_friction_factor[train],
+                speeds,
+                peaks[load],
+                mass_kg,
+                mass_kg - wheelsets_kg,
+                vehicle.running_resistance,
+            )
+            self.ideal_braking_distance_m[train] = speed * self.dead_time_s + braking
 
     def episode_info(self, train: int | None = None) -> dict[str, Any]:
         fleet = self.fleet
@@ -398,5 +472,6 @@ class WheelSlideProtection(BrakeTask):
             "max_locked_time_s": self.locked_longest_s.max(axis=1),
             "ideal_braking_distance_m": self.ideal_braking_distance_m,
             "brake_demand_s": self.demand_step * fleet.control_step_s,
+            "rail_friction_factor": self.rail_friction_factor,
         }
         return copies(info) if train is None else of_train(info, train)
