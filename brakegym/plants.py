@@ -21,6 +21,7 @@ from .physics import (
     FrictionLaw,
     LoadTransfer,
     PolachLaw,
+    RailConditioning,
     RailSections,
     RunningResistanceLaw,
     ScatterPartition,
@@ -130,6 +131,13 @@ def wheel_rail_contact(vehicle: cfg.Vehicle) -> WheelRailContact:
     )
 
 
+def rail_conditioning(condition: cfg.RailCondition) -> RailConditioning:
+    """How the axles of a train condition a rail in ``condition`` (docs/adhesion.md)."""
+    return RailConditioning(
+        cleaned_friction_ratio=condition.cleaned_friction_ratio, per_axle=condition.conditioning_per_axle
+    )
+
+
 def rail_sections(line: cfg.Line) -> RailSections:
     """The creep-force law of each section of ``line``; an unknown rail condition names the line
     and the section."""
@@ -193,12 +201,16 @@ def wheel_rail_adhesion(
 ) -> WheelRailAdhesion:
     """The adhesion option of ``vehicle`` on a rail in one condition or on a line of sections
     (docs/adhesion.md); ``with_load_transfer``: each axle's normal load changes with the train's
-    deceleration (:func:`load_transfer`), else every wheel carries the static share."""
+    deceleration (:func:`load_transfer`), else every wheel carries the static share. The rail's
+    conditioning by the axles ahead is its condition's (each section's on a line)."""
+    conditioning = tuple(rail_conditioning(condition) for condition in rail_conditions_of(rail))
     return WheelRailAdhesion(
         law=rail_sections(rail) if isinstance(rail, cfg.Line) else polach_law(rail),
         contact=wheel_rail_contact(vehicle),
         wheelset_inertia_kgm2=vehicle.wheelsets.inertia_kgm2,
         load_transfer=load_transfer(vehicle) if with_load_transfer else None,
+        # None where no section is conditioned: the kernel's factors are then exactly 1.
+        conditioning=conditioning if any(c != RailConditioning() for c in conditioning) else None,
     )
 
 

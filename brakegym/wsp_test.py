@@ -26,6 +26,7 @@ from .applications import MAX_STOP_TIME_S, TrainApplication
 from .physics import PolachLaw
 from .physics.adhesion import creep
 from .plants import rail_friction_factor_for_samples, train_scatter, wheel_rail_adhesion
+from .simulator import wheelset_kernel
 from .simulator.state import MU, POSITION, SPEED
 from .simulator.wheelsets import AdhesionSimulator, WheelRailAdhesion
 from .units import STANDARD_GRAVITY_MPS2, kmh_to_mps
@@ -173,17 +174,21 @@ def seeded_adhesion(
 class PeakAdhesionTable:
     """The peak F / Q of each rail section's law over the train speed (0 to a little above
     ``max_speed_mps``) at one wheel load, interpolated linearly in speed; of one train's rail
-    (its ``static_friction_factor`` on every section's mu_0)."""
+    (its ``static_friction_factor`` on every section's mu_0). Under an axle whose mu_0 the rail's
+    conditioning raises by g the peak at v is g times the section's at g v (Polach's law with mu_0
+    times g: the creep s = g s' maps the curves, tested in tests/test_adhesion.py)."""
 
     def __init__(self, adhesion: WheelRailAdhesion, n_axles: int, wheel_load_N: float, max_speed_mps: float):
         starts, parameters, offsets = adhesion.rail_table(n_axles)
         factors = adhesion.static_friction_factor
         if factors is not None and len(factors) != 1:
             raise ValueError(f"static_friction_factor {factors}: the table is of one train's rail, give one factor")
-        parameters = parameters.copy()
-        parameters[:, 0] *= 1.0 if factors is None else factors[0]
+        laws = parameters[:, : wheelset_kernel.N_LAW_PARAMETERS].copy()
+        laws[:, 0] *= 1.0 if factors is None else factors[0]
+        self.conditioning = parameters[:, wheelset_kernel.AXLE_CONDITIONING :]  # (S, A)
         self.starts_m, self.axle_offsets_m = starts, offsets
-        self.speeds_mps = np.linspace(0.0, 1.05 * max_speed_mps + 1.0, _PEAK_TABLE_POINTS)
+        reach = float(self.conditioning.max())
+        self.speeds_mps = np.linspace(0.0, reach * (1.05 * max_speed_mps + 1.0), _PEAK_TABLE_POINTS)
         stiffness = adhesion.contact.creep_stiffness_N(wheel_load_N)
         self.peaks = np.array(
             [
@@ -191,7 +196,7 @@ class PeakAdhesionTable:
                     PolachLaw(*row).peak_adhesion(v, wheel_load_N, stiffness, n_creeps=_PEAK_TABLE_CREEPS)[0]
                     for v in self.speeds_mps
                 ]
-                for row in parameters
+                for row in laws
             ]
         )
 
@@ -201,9 +206,14 @@ class PeakAdhesionTable:
         return np.maximum(np.searchsorted(self.starts_m, axle_position, side="right") - 1, 0)
 
     def peak(self, speed_mps: np.ndarray, section: np.ndarray) -> np.ndarray:
-        """The peak F / Q at train speeds (B,) in sections (A, B): (A, B)."""
-        by_section = np.array([np.interp(speed_mps, self.speeds_mps, row) for row in self.peaks])  # (S, B)
-        return np.take_along_axis(by_section, section, axis=0)
+        """The peak F / Q at train speeds (B,) in sections (A, B), under each axle: (A, B)."""
+        factor = np.take_along_axis(self.conditioning.T, section, axis=1)  # (A, B)
+        peak = np.zeros(section.shape)
+        for index, row in enumerate(self.peaks):
+            in_section = section == index
+            scaled = factor * np.interp(factor * np.asarray(speed_mps)[None, :], self.speeds_mps, row)
+            peak = np.where(in_section, scaled, peak)
+        return peak
 
 
 #: The ideal (perfect-WSP) stop the test reports, as the JSON says it.

@@ -18,6 +18,7 @@ from brakegym.applications import TrainApplication, train_conditions, train_stop
 from brakegym.physics import FrictionDraw
 from brakegym.physics.adhesion import (
     PolachLaw,
+    RailConditioning,
     WheelRailContact,
     contact_semi_axis_m,
     creep,
@@ -149,7 +150,7 @@ def test_mu_0_times_f_peaks_at_f_times_the_nominal_peak_at_f_times_the_speed(nam
 # Rail conditions and the vehicle's wheelsets as configs
 
 
-@pytest.mark.parametrize("name", ["dry", "wet", "low"])
+@pytest.mark.parametrize("name", ["dry", "wet", "low", "low_conditioned"])
 def test_rail_condition_gives_its_peak_adhesion(name):
     """Each file's peak_adhesion is what its Polach parameters give at the emu_8axle's contact,
     empty, 30 m/s, within 0.01 (the files state it rounded)."""
@@ -160,6 +161,26 @@ def test_rail_condition_gives_its_peak_adhesion(name):
     stiffness_N = wheel_rail_contact(vehicle).creep_stiffness_N(wheel_load_N)
     peak, _ = polach_law(condition).peak_adhesion(30.0, wheel_load_N, stiffness_N)
     assert peak == pytest.approx(condition.peak_adhesion, abs=0.01)
+
+
+def test_conditioning_raises_mu_0_axle_by_axle_towards_the_cleaned_rail():
+    """Axle k brakes on mu_0 (1 + (R - 1)(1 - (1 - c)^k)): the leading axle on the rail's own,
+    each following one on more, all below the cleaned rail's R mu_0; no conditioning gives factors
+    of exactly 1 (the kernel's arithmetic unchanged); the config's numbers reach the adhesion
+    option, and bad values are refused."""
+    factors = RailConditioning(cleaned_friction_ratio=2.0, per_axle=0.1).axle_factors(8)
+    assert factors[0] == 1.0
+    assert np.all(np.diff(factors) > 0) and factors[-1] < 2.0
+    assert factors[-1] == pytest.approx(1.0 + (1.0 - 0.9**7))
+    np.testing.assert_array_equal(RailConditioning().axle_factors(8), np.ones(8))
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    conditioned = wheel_rail_adhesion(vehicle, cfg.load("rail_conditions", "low_conditioned"))
+    np.testing.assert_array_equal(conditioned.axle_conditioning(8), factors[None, :])
+    assert wheel_rail_adhesion(vehicle, cfg.load("rail_conditions", "low")).conditioning is None
+    with pytest.raises(ValueError, match="cleaned_friction_ratio"):
+        RailConditioning(cleaned_friction_ratio=0.5)
+    with pytest.raises(ValueError, match="per_axle"):
+        RailConditioning(per_axle=1.0)
 
 
 def test_low_adhesion_is_in_the_wsp_test_range():
@@ -267,7 +288,7 @@ def stops(request):
     """The golden train case (120 km/h, empty, emergency, EP) without adhesion, on a dry and on
     a low-adhesion rail."""
     with cfg.config_path(REPO_CONFIGS):
-        return {condition: _stop(condition) for condition in (None, "dry", "low")}
+        return {condition: _stop(condition) for condition in (None, "dry", "low", "low_conditioned")}
 
 
 def test_dry_rail_stops_like_the_model_without_adhesion(stops):
@@ -287,7 +308,7 @@ def test_pure_rolling_when_the_brake_force_is_far_below_the_adhesion(stops):
     assert dry.slip_work_J.sum() < 2e-3 * dry.initial_kinetic_energy_J[0]
 
 
-@pytest.mark.parametrize("condition", ["dry", "low"])
+@pytest.mark.parametrize("condition", ["dry", "low", "low_conditioned"])
 def test_kinetic_energy_lost_is_disc_slip_and_resistance_work(stops, condition):
     summary, _ = stops[condition]
     dissipated = summary.brake_work_J + summary.slip_work_J.sum(axis=1) + summary.resistance_work_J
@@ -305,23 +326,42 @@ def test_low_adhesion_locks_the_wheels_and_their_discs_stay_cold(stops):
     assert low.friction_heat_J.sum() < 0.2 * dry.friction_heat_J.sum()
 
 
-def test_no_stop_shorter_than_the_adhesion_allows(stops):
-    """The body decelerates by at most (peak adhesion x weight + F_R) / M, all axles braked: the
-    braking distance is at least v0^2 / (2 a_max), a_max with the largest peak adhesion from
-    standstill to v0 and the resistance at v0."""
+def test_a_conditioned_rail_stops_the_train_shorter(stops):
+    """Without WSP the wheels lock on the low rail; on the one the axles condition for each other
+    the following axles find more friction (some of them keep rolling), and the train stops
+    shorter."""
+    low, _ = stops["low"]
+    conditioned, observer = stops["low_conditioned"]
+    assert observer.locked_steps > 100  # the leading axles still lock
+    assert conditioned.stop_distance_m[0] < 0.95 * low.stop_distance_m[0]
+
+
+@pytest.mark.parametrize("condition", ["low", "low_conditioned"])
+def test_no_stop_shorter_than_the_adhesion_allows(stops, condition):
+    """The body decelerates by at most (mean over the axles of each one's peak adhesion x weight
+    + F_R) / M, all axles braked: the braking distance is at least v0^2 / (2 a_max), a_max with the
+    largest peak adhesion from standstill to v0 and the resistance at v0; on the conditioned rail
+    each axle's peak with its own mu_0."""
     vehicle = cfg.load("vehicles", "emu_8axle")
     mass_kg = vehicle.mass_kg("empty")
     wheel_load_N = mass_kg * STANDARD_GRAVITY_MPS2 / (2 * vehicle.n_axles)
-    adhesion = _adhesion("low")
+    adhesion = _adhesion(condition)
     stiffness_N = adhesion.contact.creep_stiffness_N(wheel_load_N)
     v0 = 120 / 3.6
-    peak = max(adhesion.law.peak_adhesion(v, wheel_load_N, stiffness_N)[0] for v in np.linspace(0.5, v0, 12))
+    axle_laws = [
+        dataclasses.replace(adhesion.law, static_friction=adhesion.law.static_friction * factor)
+        for factor in adhesion.axle_conditioning(vehicle.n_axles)[0]
+    ]
+    peak = max(
+        np.mean([law.peak_adhesion(v, wheel_load_N, stiffness_N)[0] for law in axle_laws])
+        for v in np.linspace(0.5, v0, 12)
+    )
     body_mass_kg = mass_kg - vehicle.n_axles * adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
     resistance = vehicle.running_resistance
     resistance_N = resistance.A_N + resistance.B_N_per_mps * v0 + resistance.C_N_per_mps2 * v0**2
     max_deceleration = (peak * mass_kg * STANDARD_GRAVITY_MPS2 + resistance_N) / body_mass_kg
-    low, _ = stops["low"]
-    assert low.braking_distance_m[0] >= v0**2 / (2 * max_deceleration)
+    summary, _ = stops[condition]
+    assert summary.braking_distance_m[0] >= v0**2 / (2 * max_deceleration)
 
 
 def test_wheelset_substeps_converge_against_a_tenth_of_them():
@@ -433,14 +473,15 @@ def _assert_same_states(compiled: AdhesionSimulator, reference: NumpyAdhesionSim
 
 @pytest.mark.parametrize(
     "rail",
-    ["dry", "low", "low_patch_with_axle_offsets", "wet_scattered_per_train"],
-    ids=["dry", "low", "patch-offsets", "wet-per-train"],
+    ["dry", "low", "low_patch_with_axle_offsets", "wet_scattered_per_train", "low_conditioned"],
+    ids=["dry", "low", "patch-offsets", "wet-per-train", "low-conditioned"],
 )
 def test_compiled_adhesion_step_is_the_numpy_reference(rail):
     """Trains stopping, standing and cooling in one batch (not held), wheels rolling, locking and
     spinning up again on a patch with the axles spread along the train, and each train on its own
-    rail (mu_0 scaled per train, from a wet rail that holds to a low one that locks): the compiled
-    kernel and the numpy scheme agree to round-off at every step."""
+    rail (mu_0 scaled per train, from a wet rail that holds to a low one that locks), and on a rail
+    each axle conditions for the next: the compiled kernel and the numpy scheme agree to round-off
+    at every step."""
     vehicle = cfg.load("vehicles", "emu_8axle")
     if rail == "wet_scattered_per_train":
         adhesion = dataclasses.replace(_adhesion("wet"), static_friction_factor=(1.3, 1.0, 0.5, 0.2, 0.25))

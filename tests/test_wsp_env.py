@@ -185,15 +185,19 @@ def test_ideal_distance_on_a_scattered_rail_is_that_of_the_scaled_rails_own_peak
     body_kg = mass_kg - vehicle.n_axles * vehicle.wheelsets.inertia_kgm2 / vehicle.wheel_radius_m**2
     args = (mass_kg, body_kg, vehicle.running_resistance)
     from_nominal = adhesion_limited_distance_m(
-        120 / 3.6, factor, speeds, law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+        120 / 3.6,
+        np.array([factor]),
+        speeds,
+        law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0],
+        *args,
     )
     own = adhesion_limited_distance_m(
-        120 / 3.6, 1.0, speeds, scaled.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+        120 / 3.6, np.ones(1), speeds, scaled.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
     )
     assert from_nominal == pytest.approx(own, rel=1e-3)
     # More adhesion, a shorter stop.
     nominal = adhesion_limited_distance_m(
-        120 / 3.6, 1.0, speeds, law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
+        120 / 3.6, np.ones(1), speeds, law.peak_adhesion(speeds, wheel_load_N, stiffness_N, n_creeps=2001)[0], *args
     )
     assert (own < nominal) == (factor > 1)
 

@@ -96,6 +96,18 @@ def test_utilisation_is_a_share_and_no_stop_beats_the_ideal(low_rail, wsp):
         assert report["adhesion_utilisation"] > 0.75
 
 
+def test_on_a_conditioned_rail_each_axle_counts_with_its_own_rail(low_rail):
+    """On the rail the axles condition for each other the perfect WSP uses each axle's own peak
+    (more behind the leader): its stop is shorter than on the low rail, no stop beats it, and no
+    axle uses more than its own rail gives (0 < eta <= 1)."""
+    with cfg.config_path(REPO / "configs"):
+        report = wsp_test("emu_8axle", "empty", V0_KMH, "reference", condition="low_conditioned").as_json()
+    assert report["ideal_distance_m"] < low_rail["reference"]["ideal_distance_m"]
+    assert report["stop_distance_m"] >= report["ideal_distance_m"]
+    assert report["stop_distance_m"] < low_rail["reference"]["stop_distance_m"]
+    assert 0.0 < report["adhesion_utilisation"] <= 1.0
+
+
 def test_on_the_dry_rail_nothing_slides_and_the_distance_is_the_dry_one():
     """The dry rail gives more adhesion than the emergency brake asks: no axle locks, the stop is
     the reference stop (no extension), the brake's whole demand reaches the rail (eta 1 to the

@@ -496,8 +496,10 @@ class EffectSet(StrictModel):
 class RailCondition(StrictModel):
     """A condition of the rail (``configs/rail_conditions/``): the parameters of Polach's
     creep-force law (docs/adhesion.md; O. Polach, Wear 258 (2005) 992-1000), the peak adhesion the
-    condition stands for, its scatter, and where the numbers come from (a document, or
-    ``ASSUMED: <why>``)."""
+    condition stands for, its scatter, how the axles of a train condition it (each axle closes the
+    share ``conditioning_per_axle`` of the gap to ``cleaned_friction_ratio`` times mu_0, so that
+    following axles brake on more; the defaults: no conditioning), and where the numbers come from
+    (a document, or ``ASSUMED: <why>``)."""
 
     name: str
     description: str = ""
@@ -509,6 +511,8 @@ class RailCondition(StrictModel):
     slip_reduction: float = Field(gt=0, le=1)  # k_S
     peak_adhesion: float = Field(gt=0, le=1)  # at the emu_8axle's contact, 30 m/s (a test checks it)
     static_friction_relative_sigma: float = Field(ge=0, lt=0.5)  # scatter of mu_0 per application
+    cleaned_friction_ratio: float = Field(default=1.0, ge=1, le=20)  # mu_0 of the cleaned rail over mu_0
+    conditioning_per_axle: float = Field(default=0.0, ge=0, lt=1)  # share of the gap each axle closes
 
 
 class LineSection(StrictModel):

@@ -13,7 +13,7 @@ then axles and the discs of each axle. Nothing here integrates in time (that is 
 job), and nothing here reads configs: :mod:`brakegym.plants` builds these objects from them.
 """
 
-from .adhesion import PolachLaw, RailSections, WheelRailContact, static_friction_factor
+from .adhesion import PolachLaw, RailConditioning, RailSections, WheelRailContact, static_friction_factor
 from .friction import FrictionLaw
 from .load_transfer import LoadTransfer
 from .mechanics import RunningResistanceLaw, brake_force_N, sliding_speed_mps
@@ -40,6 +40,7 @@ __all__ = [
     "HeatFlows",
     "LoadTransfer",
     "PolachLaw",
+    "RailConditioning",
     "RailSections",
     "static_friction_factor",
     "RunningResistanceLaw",

@@ -17,6 +17,7 @@ vehicle's contact.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -211,6 +212,30 @@ class PolachLaw:
 
 
 @dataclass(frozen=True)
+class RailConditioning:
+    """The conditioning of a contaminated rail by the axles that run over it: each axle closes the
+    share ``per_axle`` of the gap between the mu_0 it finds and the cleaned rail's,
+    ``cleaned_friction_ratio`` times the contaminated one, so that axle k (0 the leading one)
+    brakes on mu_0 (1 + (R - 1)(1 - (1 - c)^k)). The defaults leave every axle on mu_0 (factors
+    of exactly 1). A static picture of the train's own passage (docs/adhesion.md, "Rail
+    conditioning"): how much an axle cleans does not depend on whether it slides."""
+
+    cleaned_friction_ratio: float = 1.0
+    per_axle: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.cleaned_friction_ratio) and self.cleaned_friction_ratio >= 1.0):
+            raise ValueError(f"cleaned_friction_ratio {self.cleaned_friction_ratio}: must be at least 1")
+        if not 0.0 <= self.per_axle < 1.0:
+            raise ValueError(f"per_axle {self.per_axle}: must lie in [0, 1)")
+
+    def axle_factors(self, n_axles: int) -> np.ndarray:
+        """Each axle's factor on mu_0 (n_axles,), the leading axle first."""
+        cleaned = 1.0 - (1.0 - self.per_axle) ** np.arange(n_axles)
+        return 1.0 + (self.cleaned_friction_ratio - 1.0) * cleaned
+
+
+@dataclass(frozen=True)
 class WheelRailContact:
     """The Hertz contact of a vehicle's wheel on the rail: semi-axes a (rolling direction) and b at
     a reference wheel load, scaled with the cube root of the load; Kalker's c_11 for its b / a;
@@ -244,10 +269,14 @@ class RailSections:
         if self.starts_m[0] != 0.0 or any(b <= a for a, b in zip(self.starts_m, self.starts_m[1:])):
             raise ValueError(f"section starts {self.starts_m}: must begin at 0 and rise")
 
+    def section_at(self, position_m: np.ndarray) -> np.ndarray:
+        """The index of the section at each of ``position_m`` (before the line's start, 0)."""
+        return np.maximum(np.searchsorted(self.starts_m, position_m, side="right") - 1, 0)
+
     def law_at(self, position_m: np.ndarray) -> PolachLaw:
         """The law at each of ``position_m``, its parameters arrays shaped like the positions
         (before the line's start, the first section's)."""
-        section = np.maximum(np.searchsorted(self.starts_m, position_m, side="right") - 1, 0)
+        section = self.section_at(position_m)
         table = np.array(
             [
                 [

@@ -130,7 +130,9 @@ def _compiled_threaded(function):
 #: costs some 10 us, a thread's start some more).
 TRAINS_PER_THREAD = 8
 
-# Columns of the section table (S, N_LAW_PARAMETERS): Polach's parameters of each section's law.
+# Columns of the section table (S, N_LAW_PARAMETERS + A): Polach's parameters of each section's law,
+# then from AXLE_CONDITIONING each axle's factor on the section's mu_0 (the rail's conditioning by
+# the axles ahead, brakegym.physics.RailConditioning; exactly 1 without, so the same bits).
 (
     STATIC_FRICTION,
     FRICTION_RATIO_AT_INFINITY,
@@ -139,6 +141,7 @@ TRAINS_PER_THREAD = 8
     SLIP_REDUCTION,
 ) = range(5)
 N_LAW_PARAMETERS = 5
+AXLE_CONDITIONING = N_LAW_PARAMETERS
 
 # Rows of the per-train constants of the adhesion option (N_WHEELSET_CONSTANTS, B).
 # STATIC_FRICTION_FACTOR scales every section's mu_0 for that train (its rail's scatter; 1: the rail's own).
@@ -189,14 +192,14 @@ def _creep_forces(
 ):
     """Each axle's force on the rail, both wheels (N, retarding for creep > 0), and its slope
     dF/ds at fixed friction (N per unit creep), into ``force_N`` and ``slope_N`` (A,); every
-    section's mu_0 times the train's ``friction_factor``."""
+    section's mu_0 times the train's ``friction_factor`` and the axle's conditioning factor."""
     regularisation = scheme[REGULARISATION_SPEED_MPS]
     for axle in range(force_N.shape[0]):
         law = laws[sections[axle]]
         u = wheel_speed_mps[axle]
         slip = speed_mps - u
         s = creep(speed_mps, u, regularisation)
-        mu0 = law[STATIC_FRICTION] * friction_factor
+        mu0 = law[STATIC_FRICTION] * friction_factor * law[AXLE_CONDITIONING + axle]
         ratio, decay = law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
         reduction_a, reduction_s = law[ADHESION_REDUCTION], law[SLIP_REDUCTION]
         coefficient = adhesion_coefficient(
@@ -254,7 +257,7 @@ def _creep_forces_per_axle(
         u = wheel_speed_mps[axle]
         slip = speed_mps - u
         s = creep(speed_mps, u, regularisation)
-        mu0 = law[STATIC_FRICTION] * friction_factor
+        mu0 = law[STATIC_FRICTION] * friction_factor * law[AXLE_CONDITIONING + axle]
         ratio, decay = law[FRICTION_RATIO_AT_INFINITY], law[FRICTION_DECAY_S_PER_M]
         reduction_a, reduction_s = law[ADHESION_REDUCTION], law[SLIP_REDUCTION]
         coefficient = adhesion_coefficient(

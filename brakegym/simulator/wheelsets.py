@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics import PolachLaw, RailSections, RunningResistanceLaw, WheelRailContact
+from ..physics import PolachLaw, RailConditioning, RailSections, RunningResistanceLaw, WheelRailContact
 from ..physics.adhesion import creep
 from ..physics.load_transfer import LoadTransfer
 from ..units import STANDARD_GRAVITY_MPS2
@@ -56,8 +56,10 @@ class WheelRailAdhesion:
     substep, how far behind the train's position each axle runs (m, one per axle; all at the
     train's position if not given), which decides when each axle enters a section, and each
     train's own rail: a factor on every section's mu_0, one per train of the batch (a campaign's
-    scatter of the rail, docs/adhesion.md; none: every train on the rail as given), and the load
-    transfer between the axles while braking (none: every wheel carries the static share)."""
+    scatter of the rail, docs/adhesion.md; none: every train on the rail as given), the load
+    transfer between the axles while braking (none: every wheel carries the static share), and
+    the conditioning of the rail by the axles ahead, one per section of the line (none: each axle
+    on the section's own mu_0)."""
 
     law: PolachLaw | RailSections
     contact: WheelRailContact
@@ -67,24 +69,49 @@ class WheelRailAdhesion:
     axle_offsets_m: tuple[float, ...] | None = None
     static_friction_factor: tuple[float, ...] | None = None
     load_transfer: LoadTransfer | None = None
+    conditioning: tuple[RailConditioning, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.static_friction_factor is not None and not all(
             math.isfinite(f) and f > 0 for f in self.static_friction_factor
         ):
             raise ValueError(f"static_friction_factor {self.static_friction_factor}: every factor must be positive")
+        sections = len(self.law.laws) if isinstance(self.law, RailSections) else 1
+        if self.conditioning is not None and len(self.conditioning) != sections:
+            raise ValueError(f"{len(self.conditioning)} rail conditionings for {sections} sections: need one each")
 
-    def law_at(self, position_m: np.ndarray) -> PolachLaw:
+    def axle_conditioning(self, n_axles: int) -> np.ndarray:
+        """Each section's factor on mu_0 under each axle (S, A): the rail's conditioning by the
+        axles ahead, exactly 1 without."""
+        sections = len(self.law.laws) if isinstance(self.law, RailSections) else 1
+        if self.conditioning is None:
+            return np.ones((sections, n_axles))
+        return np.array([conditioning.axle_factors(n_axles) for conditioning in self.conditioning])
+
+    def law_at(self, position_m: np.ndarray, n_axles: int | None = None) -> PolachLaw:
         """The creep-force law under each axle, train positions ``position_m`` (B,): the law
-        itself on a uniform rail, else parameter arrays (A, B)."""
+        itself on a uniform rail, else parameter arrays (A, B); with a conditioning (which needs
+        ``n_axles``), mu_0 under each axle times its factor, (A, 1) or (A, B)."""
         if isinstance(self.law, PolachLaw):
-            return self.law
-        offsets = np.zeros(1) if self.axle_offsets_m is None else np.asarray(self.axle_offsets_m)
-        return self.law.law_at(position_m[None, :] - offsets[:, None])
+            law = self.law
+            section = np.zeros((1, 1), dtype=np.int64)
+        else:
+            offsets = np.zeros(1) if self.axle_offsets_m is None else np.asarray(self.axle_offsets_m)
+            axle_position = position_m[None, :] - offsets[:, None]
+            law = self.law.law_at(axle_position)
+            section = self.law.section_at(axle_position)
+        if self.conditioning is None:
+            return law
+        if n_axles is None:
+            raise ValueError("a conditioned rail's law under each axle needs n_axles")
+        factors = self.axle_conditioning(n_axles)  # (S, A)
+        under_axle = np.take_along_axis(factors.T, np.broadcast_to(section, (n_axles, section.shape[1])), axis=1)
+        return dataclasses.replace(law, static_friction=law.static_friction * under_axle)
 
     def rail_table(self, n_axles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The rail as the compiled kernel reads it: section starts (S,), each section's Polach
-        parameters (S, 5) and the axle offsets (A,); a uniform rail is one section from 0."""
+        parameters then each axle's factor on its mu_0 (S, 5 + A: :attr:`axle_conditioning`) and
+        the axle offsets (A,); a uniform rail is one section from 0."""
         sections = self.law if isinstance(self.law, RailSections) else RailSections((0.0,), (self.law,))
         laws = np.array(
             [
@@ -99,6 +126,7 @@ class WheelRailAdhesion:
             ],
             dtype=float,
         )
+        laws = np.concatenate([laws, self.axle_conditioning(n_axles)], axis=1)
         offsets = np.zeros(n_axles) if self.axle_offsets_m is None else np.asarray(self.axle_offsets_m, dtype=float)
         if offsets.shape != (n_axles,):
             raise ValueError(f"axle_offsets_m {self.axle_offsets_m}: need one offset per axle ({n_axles})")
@@ -232,9 +260,10 @@ class AdhesionSimulator(Simulator):
         return self.wheelset_constants[wheelset_kernel.STATIC_FRICTION_FACTOR]
 
     def rail_law_at(self, position_m: np.ndarray) -> PolachLaw:
-        """The creep-force law under each axle (:meth:`WheelRailAdhesion.law_at`), its mu_0
-        times each train's :attr:`static_friction_factor` where the adhesion option gives one."""
-        law = self.adhesion.law_at(position_m)
+        """The creep-force law under each axle (:meth:`WheelRailAdhesion.law_at`, the rail's
+        conditioning in it), its mu_0 times each train's :attr:`static_friction_factor` where the
+        adhesion option gives one."""
+        law = self.adhesion.law_at(position_m, self.plant.n_axles)
         if self.adhesion.static_friction_factor is None:
             return law
         return dataclasses.replace(law, static_friction=law.static_friction * self.static_friction_factor)

@@ -6,9 +6,10 @@ one condition throughout, e.g. ``low``, or a line of sections such as ``low_patc
 one valve per axle or per bogie). Each episode draws the initial speed (``initial_speed_kmh``), the
 load, the discs' friction scatter (``setup``), with ``wheel_rail.rail_scatter`` its own rail (every
 section's mu_0 times a lognormal factor of mean 1 and the condition's relative sigma; on a line the
-largest of its sections'), and a coast (``coast_s``, rounded to control steps) after which the brake control asks for the pressure of ``brake_mode`` (emergency) in every
-cylinder; the agent then commands the valves between that pressure and the cylinders at
-``policy_frequency_hz`` (50 Hz, the 20 ms step of a brake control unit). Every quantity of an
+largest of its sections'), and a coast (``coast_s``, rounded to control steps) after which the
+brake control asks for the pressure of ``brake_mode`` (emergency) in every cylinder; the agent then
+commands the valves between that pressure and the cylinders at ``policy_frequency_hz`` (50 Hz, the
+20 ms step of a brake control unit). Every quantity of an
 episode, the sensor noise included, is drawn from the episode's own key, so that a train's episode
 is the same whatever the batch it runs in.
 
@@ -92,11 +93,11 @@ MIN_REFERENCE_SPEED_MPS = 1.0
 #: Streams of the task's keyed draws (the coast, the rail's factor) and of the sensor noise,
 #: derived from the fleet's episode keys (:mod:`brakegym.envs.fleet`).
 COAST_STREAM, NOISE_STREAM, RAIL_STREAM = 11, 12, 13
-#: The peak-adhesion table's speeds reach this multiple of the fastest initial speed: a rail whose
+#: The peak-adhesion table's speeds reach this multiple of the fastest initial speed. A rail whose
 #: mu_0 is f times the nominal one has at speed v the nominal law's peak at f v, times f
 #: (:func:`adhesion_limited_distance_m`), so the table serves factors up to this.
 PEAK_TABLE_SPEED_RANGE = 3.0
-#: The brake force of the adhesion-limited stop is the peak adhesion times this: the table's creep
+#: The brake force of the adhesion-limited stop is the peak adhesion times this. The table's creep
 #: grid finds each peak at most one grid step below the true one, and the interpolation between
 #: its speeds errs by far less; 0.5 % up makes the distance a bound from below.
 PEAK_ADHESION_MARGIN = 1.005
@@ -106,27 +107,30 @@ IDEAL_SPEED_POINTS = 200
 
 def adhesion_limited_distance_m(
     speed_mps: float,
-    rail_friction_factor: float,
+    axle_friction_factors: np.ndarray,
     peak_speeds_mps: np.ndarray,
     peak_adhesion: np.ndarray,
     mass_kg: float,
     body_mass_kg: float,
     resistance: cfg.RunningResistance,
 ) -> float:
-    """The distance from ``speed_mps`` to standstill braked at the rail's peak adhesion at every
-    speed (times :data:`PEAK_ADHESION_MARGIN`), with the running resistance, the train's mass
-    ``mass_kg`` on the rail and its body mass ``body_mass_kg`` to decelerate (the wheelsets brake
-    their own inertia): the integral of v m_body / F(v) dv from 0.05 m/s.
+    """The distance from ``speed_mps`` to standstill braked at the rail's peak adhesion under
+    every axle at every speed (times :data:`PEAK_ADHESION_MARGIN`), with the running resistance,
+    the train's mass ``mass_kg`` on the rail and its body mass ``body_mass_kg`` to decelerate (the
+    wheelsets brake their own inertia): the integral of v m_body / F(v) dv from 0.05 m/s.
 
-    ``peak_adhesion`` is the nominal rail's peak at ``peak_speeds_mps``. Polach's law with mu_0
-    times f has at speed v f times the nominal law's peak at f v: the creep s = f s' turns its
-    force into f times the nominal one at creep s' and slip speed s' (f v) (tested in
-    tests/test_adhesion.py). Beyond the table's last speed its last peak stands, which is at
-    least the true one (the peak falls with the speed)."""
+    ``peak_adhesion`` is the nominal rail's peak at ``peak_speeds_mps``;
+    ``axle_friction_factors`` each axle's factor on the nominal mu_0 (the episode's rail times
+    the rail's conditioning by the axles ahead; one factor stands for every axle). Polach's law
+    with mu_0 times f has at speed v f times the nominal law's peak at f v: the creep s = f s'
+    turns its force into f times the nominal one at creep s' and slip speed s' (f v) (tested in
+    tests/test_adhesion.py). Beyond the table's last speed its last peak stands, which is at least
+    the true one (the peak falls with the speed)."""
     if speed_mps <= 0.05:
         return 0.0
     speeds = np.linspace(0.05, speed_mps, IDEAL_SPEED_POINTS)
-    peak = rail_friction_factor * np.interp(rail_friction_factor * speeds, peak_speeds_mps, peak_adhesion)
+    factors = np.asarray(axle_friction_factors, dtype=float).reshape(-1, 1)
+    peak = np.mean(factors * np.interp(factors * speeds, peak_speeds_mps, peak_adhesion), axis=0)
     force_N = PEAK_ADHESION_MARGIN * peak * mass_kg * STANDARD_GRAVITY_MPS2
     force_N += resistance.A_N + resistance.B_N_per_mps * speeds + resistance.C_N_per_mps2 * speeds**2
     integrand = speeds * body_mass_kg / force_N
@@ -448,13 +452,15 @@ class WheelSlideProtection(BrakeTask):
         vehicle = fleet.vehicle
         speeds, peaks = self.peak_adhesion_table
         wheelsets_kg = self.n_axles * fleet.adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
+        # Each axle's factor on the nominal mu_0 from the rail's conditioning (one section).
+        conditioning = fleet.adhesion.axle_conditioning(self.n_axles)[0]
         for train in index:
             load = fleet.episodes.load_index[train]
             mass_kg = vehicle.mass_kg(fleet.vehicle_loads[load])
             speed = self.speed_at_demand_mps[train]
             braking = adhesion_limited_distance_m(
                 speed,
-                self.rail_friction_factor[train],
+                self.rail_friction_factor[train] * conditioning,
                 speeds,
                 peaks[load],
                 mass_kg,
