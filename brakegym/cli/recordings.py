@@ -82,6 +82,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
         noise_scale=args.noise_scale,
         measurement_chain=chain,
         model_form=form,
+        gradient_profile=args.gradient_profile,
+        declare_gradient_profile=not args.conceal_gradient_profile,
     )
     print(f"wrote {len(result.recordings)} recordings to {result.folder} and the answer key to {result.key_path}")
     return 0
@@ -135,8 +137,49 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
             "the key under 'out_of_library')"
         ),
     )
+    p.add_argument(
+        "--gradient-profile",
+        type=_gradient_profile,
+        metavar="START_M:PERMIL,...",
+        help=(
+            "run every application on a line of this gradient profile, sections from metres travelled since the "
+            "recording's first sample, e.g. 0:0,400:-6 (level, then 6 permil downhill from 400 m); written into "
+            "each recording's metadata as the line's known gradient"
+        ),
+    )
+    p.add_argument(
+        "--conceal-gradient-profile",
+        action="store_true",
+        help="keep the gradient profile out of the recordings (in the answer key only): a line to be found",
+    )
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")
     p.set_defaults(func=cmd_synth)
+
+
+def _gradient_profile(text: str):
+    """``START_M:PERMIL,...`` as a :class:`~brakegym.recordings.GradientProfile`; a clear error
+    naming the option and the part that is wrong."""
+    from pydantic import ValidationError
+
+    from ..recordings import GradientProfile
+
+    starts, gradients = [], []
+    for part in text.split(","):
+        start, sep, gradient = part.partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            starts.append(float(start))
+            gradients.append(float(gradient))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"--gradient-profile {text!r}: {part!r} is not START_M:PERMIL (e.g. 0:0,400:-6)"
+            ) from None
+    try:
+        return GradientProfile(start_m=starts, gradient_permil=gradients)
+    except ValidationError as error:
+        reasons = "; ".join(item["msg"].removeprefix("Value error, ") for item in error.errors())
+        raise argparse.ArgumentTypeError(f"--gradient-profile {text!r}: {reasons}") from None
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:

@@ -110,7 +110,9 @@ class EffectedModel:
 
     ``conditions.mass_kg`` is the inertial mass (a rotating-mass effect raises it);
     ``gravitational_mass_kg`` stays the train's mass for gravity and axle loads. ``grade`` is the
-    track's rise over run in the direction of travel, per application.
+    track's rise over run in the direction of travel, per application (a gradient that changes
+    along the line is a :class:`~brakegym.effects.hooks.GradientProfileForce` among the
+    ``extra_forces``).
     """
 
     plant: Plant

@@ -23,6 +23,32 @@ class ConstantForce:
 
 
 @dataclass(frozen=True)
+class GradientProfileForce:
+    """The force of a line's gradient that changes along the track, m g p(x) / 1000 for the
+    section under the train at position x (each train its own profile; a train leads with its
+    reference point, so the whole train is taken to be on one section). Per train (B, S) section
+    starts, padded with +inf, and gradients in permil; ``weight_N`` (B,) is m g."""
+
+    weight_N: np.ndarray  # (B,)
+    starts_m: np.ndarray  # (B, S)
+    gradient_permil: np.ndarray  # (B, S)
+
+    def grade_at(self, position_m: np.ndarray, train: int | slice = slice(None)) -> np.ndarray:
+        """Rise over run under trains ``train`` at positions ``position_m`` ((B,), or any shape
+        for one train)."""
+        starts, gradients = self.starts_m[train], self.gradient_permil[train]
+        position = np.asarray(position_m, dtype=float)
+        if starts.ndim == 1:
+            section = np.maximum(np.searchsorted(starts, position, side="right") - 1, 0)
+            return gradients[section] / 1000.0
+        section = np.maximum((position[:, None] >= starts).sum(axis=1) - 1, 0)
+        return np.take_along_axis(gradients, section[:, None], axis=1)[:, 0] / 1000.0
+
+    def force_N(self, context: StageContext) -> np.ndarray:
+        return self.weight_N * self.grade_at(context.position_m)
+
+
+@dataclass(frozen=True)
 class ConstantFrictionFactor:
     factor: Value  # scalar, (B,) or (A, k, B)
     constant: ClassVar[bool] = True

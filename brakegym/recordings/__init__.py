@@ -10,7 +10,7 @@ sets (``brakegym synth``). The diagnosis of recordings is :mod:`brakegym.diagnos
 """
 
 from .format import Dataset, Recording, read_dataset, read_recording, write_recording
-from .metadata import RecordingMetadata, read_metadata
+from .metadata import GradientProfile, RecordingMetadata, read_metadata
 from .problems import DatasetError, RecordingError, RecordingProblem
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "DatasetError",
     "Recording",
     "RecordingError",
+    "GradientProfile",
     "RecordingMetadata",
     "RecordingProblem",
     "read_dataset",

@@ -17,7 +17,8 @@ Sensor models (effects in :mod:`.effects` change them):
 
 - speed and odometry: ``speed_scale`` x true (a wheel-diameter error scales both);
 - deceleration, ``decel_source`` ``accelerometer``: specific force, decel_true - g x grade (it does
-  not see the slope's gravity component while moving, and reads it at standstill);
+  not see the slope's gravity component while moving, and reads it at standstill), the grade of a
+  line's gradient profile at the train's position included;
   ``speed``: the derivative of the measured speed, ``speed_scale`` x decel_true;
 - ``T_disc_C``: the friction-surface temperature of the instrumented disc through a first-order
   lag ``temperature_lag_s`` (exact for an input linear within each step), in degC.
@@ -30,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import EffectedModel
+from ..effects.hooks import GradientProfileForce
 from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 
@@ -96,6 +98,9 @@ class MeasurementModel:
         self.speed_scale = float(np.broadcast_to(model.sensors.speed_scale, (model.n_trains,))[index])
         self.temperature_lag_s = float(np.broadcast_to(model.sensors.temperature_lag_s, (model.n_trains,))[index])
         self.grade = float(np.broadcast_to(model.grade, (model.n_trains,))[index])
+        # A gradient that changes along the line: its force is among the extra forces.
+        lines = [force for force in model.extra_forces if isinstance(force, GradientProfileForce)]
+        self.line_gradient = lines[0] if lines else None
         self.stop_time_s = float(grid.stop_time_s[index])
         self._speed = grid.speed_mps[:, index]
         self._position = grid.position_m[:, index]
@@ -149,7 +154,10 @@ class MeasurementModel:
         speed, position, decel = self.kinematics(t)
         out = {SPEED: self.speed_scale * speed, POSITION: self.speed_scale * position}
         if self.decel_source == "accelerometer":
-            out[DECEL] = decel - STANDARD_GRAVITY_MPS2 * self.grade
+            grade = self.grade
+            if self.line_gradient is not None:
+                grade = grade + self.line_gradient.grade_at(position, self.index)
+            out[DECEL] = decel - STANDARD_GRAVITY_MPS2 * grade
         elif self.decel_source == "speed":
             out[DECEL] = self.speed_scale * decel
         elif self.decel_source is not None:

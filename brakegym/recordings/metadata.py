@@ -62,6 +62,52 @@ def _vehicle_validated_before(info: ValidationInfo) -> cfg.Vehicle | None:
     return None if vehicle is None else _resolve_vehicle(vehicle)
 
 
+#: The steepest gradient a profile may give, permil (the library's gradient effect's bound).
+MAX_GRADIENT_PERMIL = 40.0
+
+
+class GradientProfile(BaseModel):
+    """The line's gradient along a recording, where it is known (docs/recording-format.md): section
+    i runs from ``start_m[i]`` metres travelled from the recording's first sample to the next start
+    (the last to the end of the run), at ``gradient_permil[i]`` (rise over run x 1000 in the
+    direction of travel, + uphill). The replay puts it into the model, so the diagnosis looks only
+    for what is not known."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    start_m: list[float] = Field(min_length=1)
+    gradient_permil: list[float] = Field(min_length=1)
+
+    @field_validator("start_m")
+    @classmethod
+    def _starts_rise_from_zero(cls, starts: list[float]) -> list[float]:
+        if starts[0] != 0.0:
+            raise ValueError("the first section must start at 0 m (the recording's first sample)")
+        if any(not b > a for a, b in zip(starts, starts[1:])) or not all(map(_finite, starts)):
+            raise ValueError("section starts must be finite and rise")
+        return starts
+
+    @field_validator("gradient_permil")
+    @classmethod
+    def _gradients_in_range(cls, gradients: list[float]) -> list[float]:
+        bad = [g for g in gradients if not (_finite(g) and abs(g) <= MAX_GRADIENT_PERMIL)]
+        if bad:
+            raise ValueError(f"gradients {bad} lie outside +-{MAX_GRADIENT_PERMIL} permil")
+        return gradients
+
+    @model_validator(mode="after")
+    def _one_gradient_per_section(self) -> GradientProfile:
+        if len(self.start_m) != len(self.gradient_permil):
+            raise ValueError(
+                f"{len(self.start_m)} section starts for {len(self.gradient_permil)} gradients: need one each"
+            )
+        return self
+
+
+def _finite(value: float) -> bool:
+    return value == value and abs(value) != float("inf")
+
+
 class RecordingMetadata(BaseModel):
     """``<stem>.json``: what was measured. Unknown keys are refused (a misspelt
     ``initial_disc_C`` must not silently fall back to the first temperature sample).
@@ -82,6 +128,7 @@ class RecordingMetadata(BaseModel):
     initial_disc_C: float | None = Field(default=None, gt=ABSOLUTE_ZERO_C, lt=1000.0)
     decel_source: Literal["accelerometer", "speed"] | None = None
     pad_set: str | None = None
+    gradient_profile: GradientProfile | None = None  # the line's known gradient along the run
     notes: str | None = None
 
     _vehicle: cfg.Vehicle = PrivateAttr()

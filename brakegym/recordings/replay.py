@@ -37,16 +37,18 @@ import pandas as pd
 from .. import config as cfg
 from ..applications import MAX_STOP_TIME_S
 from ..effects import Effect, EffectedModel, apply_effects
+from ..effects.hooks import GradientProfileForce
 from ..physics.scatter import FrictionDraw
 from ..plants import train_plant
 from ..simulator import BatchConditions, PrescribedPressure, PressureSource, Simulator
 from ..simulator.state import FRICTION_HEAT, MU, T_FRIC
 from ..simulator.state import POSITION as POSITION_STATE
 from ..simulator.state import SPEED as SPEED_STATE
-from ..units import ZERO_CELSIUS_K
+from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME
 from .format import Recording
 from .measurement import GridTrajectory, MeasurementModel
+from .metadata import GradientProfile
 from .problems import RecordingError
 
 CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
@@ -121,6 +123,26 @@ def _grid(
         mu=sim.plant.friction.bounded(discs[:, MU]).reshape(n_rows, n_discs, -1),
         stop_time_s=sim.stop_time_s.copy(),
     )
+
+
+def add_gradient_profiles(model: EffectedModel, profiles: Sequence[GradientProfile | None]) -> None:
+    """Put each run's known gradient profile (None: level) into ``model``: the force of the
+    section under the train among its extra forces (where the measurement model finds it for the
+    accelerometer, which does not see it). Nothing changes where no run has a profile."""
+    if all(profile is None for profile in profiles):
+        return
+    if len(profiles) != model.n_trains:
+        raise ValueError(f"{len(profiles)} gradient profiles for {model.n_trains} runs: need one each")
+    sections = max(len(p.start_m) for p in profiles if p is not None)
+    starts = np.full((model.n_trains, sections), np.inf)
+    gradients = np.zeros((model.n_trains, sections))
+    starts[:, 0] = 0.0
+    for b, profile in enumerate(profiles):
+        if profile is not None:
+            starts[b, : len(profile.start_m)] = profile.start_m
+            gradients[b, : len(profile.gradient_permil)] = profile.gradient_permil
+    weight_N = np.broadcast_to(np.asarray(model.gravitational_mass_kg, dtype=float), (model.n_trains,))
+    model.extra_forces.append(GradientProfileForce(weight_N * STANDARD_GRAVITY_MPS2, starts, gradients))
 
 
 def bridged_pressures_bar(recording: Recording) -> np.ndarray:
@@ -199,7 +221,8 @@ def replay_batch(
     recording's own), override the initial state. ``friction_draw`` (per disc, shape
     (recordings, axles, discs per axle)) and ``running_resistance_A_N`` (one per recording) replace
     the material's nominal mu_0 and a and the vehicle's nominal A: a drawn scatter, as a
-    campaign draws it.
+    campaign draws it. A recording's known gradient profile (its metadata's ``gradient_profile``)
+    is part of the model, not an effect.
     """
     if not recordings:
         raise ValueError("replay_batch needs at least one recording")
@@ -249,6 +272,7 @@ def replay_batch(
         ambient_temperature_K=np.array([r.metadata.ambient_C + ZERO_CELSIUS_K for r in recordings]),
     )
     model = apply_effects(plant, conditions, effects)
+    add_gradient_profiles(model, [r.metadata.gradient_profile for r in recordings])
 
     # The true initial speed: the first speed sample seen through the (possibly scaled) sensor.
     overrides_v = _overrides(initial_speed_mps, n, "initial_speed_mps")

@@ -71,9 +71,9 @@ from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_co
 from .format import Recording, write_recording
 from .logger import log_run
 from .measurement import GridTrajectory, MeasurementModel
-from .metadata import RecordingMetadata
+from .metadata import GradientProfile, RecordingMetadata
 from .model_form import DrawnModelForm, ModelForm, draw_model_form, key_entry, truth_row_entry
-from .replay import simulate_grid
+from .replay import add_gradient_profiles, simulate_grid
 
 VEHICLE = "emu_8axle"
 SCATTER_SETUP = "mcs-75-25"
@@ -279,6 +279,8 @@ def synthesize(
     scatter_setup: str = SCATTER_SETUP,
     measurement_chain: MeasurementChain | None = None,
     model_form: ModelForm | None = None,
+    gradient_profile: GradientProfile | None = None,
+    declare_gradient_profile: bool = True,
 ) -> SynthResult:
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
@@ -289,13 +291,17 @@ def synthesize(
     that chain (:mod:`.logger`) instead of the clean 10 Hz table (its noise levels times
     ``noise_scale``; offsets, quantisation and dropouts as configured); ``model_form`` makes the
     truth differ from the fitted model (:mod:`.model_form`: its step and integrator, unmodelled
-    forces, effects outside the library, recorded in the key)."""
+    forces, effects outside the library, recorded in the key); ``gradient_profile`` runs every
+    application on a line of that gradient profile (from each recording's first sample), written
+    into each recording's metadata where ``declare_gradient_profile`` (a known line), else only
+    into the key (a line the diagnosis has to find)."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
     drawn = _draw_set(
         n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
     )
+    drawn.gradient_profile, drawn.gradient_profile_declared = gradient_profile, declare_gradient_profile
     model, grid = _simulate_truth(drawn, drawn.chosen)
     recordings, truth_rows = _write_recordings(drawn, model, grid, out_dir, noise_scale)
     if drawn.chosen:
@@ -333,6 +339,7 @@ def _write_recordings(
                 drawn.noise_seeds[b],
                 drawn.vehicle,
                 noise_scale,
+                drawn.declared_gradient_profile,
             )
         write_recording(record, out_dir)
         recordings.append(record)
@@ -385,6 +392,13 @@ class _DrawnSet:
     noise_seeds: list[np.random.SeedSequence]
     chain: MeasurementChain | None = None
     model_form: DrawnModelForm | None = None
+    gradient_profile: GradientProfile | None = None  # the line every application runs on
+    gradient_profile_declared: bool = True  # in each recording's metadata, or in the key alone
+
+    @property
+    def declared_gradient_profile(self) -> GradientProfile | None:
+        """The profile the recordings' metadata carry."""
+        return self.gradient_profile if self.gradient_profile_declared else None
 
     @property
     def truth_step_s(self) -> float:
@@ -540,6 +554,16 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
         "model_form": None if form is None else key_entry(form, stems),
         # Effects outside the library: a diagnosis must leave them unexplained, not name them.
         "expected_unexplained": [] if form is None else [e["id"] for e in key_entry(form, stems)["out_of_library"]],
+        **(
+            {}
+            if drawn.gradient_profile is None
+            else {
+                "gradient_profile": {
+                    **drawn.gradient_profile.model_dump(mode="json"),
+                    "declared": drawn.gradient_profile_declared,
+                }
+            }
+        ),
         "applications": truth_rows,
     }
 
@@ -547,6 +571,7 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
 def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[EffectedModel, GridTrajectory]:
     """The true runs of the set's applications with the effects ``chosen``: (model, grid)."""
     model = apply_effects(drawn.plant, drawn.conditions, chosen)
+    add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
         # The effect sets the set's running resistance; each application still scatters around it.
         model.conditions = dataclasses.replace(
@@ -651,6 +676,7 @@ def _measure(
     noise_seed: np.random.SeedSequence,
     vehicle: cfg.Vehicle,
     noise_scale: float,
+    gradient_profile: GradientProfile | None = None,
 ) -> Recording:
     noise = {name: sigma * noise_scale for name, sigma in SENSOR_NOISE.items()}
     streams = [np.random.default_rng(s) for s in noise_seed.spawn(7)]
@@ -685,12 +711,12 @@ def _measure(
     ):
         values = _round(true[channel] + noise, RESOLUTION[channel])
         data[channel] = np.where(dropouts[:, column], np.nan, values)
-    return Recording(stem=app.stem, metadata=_metadata(app, decel_source), data=pd.DataFrame(data))
+    return Recording(stem=app.stem, metadata=_metadata(app, decel_source, gradient_profile), data=pd.DataFrame(data))
 
 
-def _metadata(app: Application, decel_source: str) -> RecordingMetadata:
+def _metadata(app: Application, decel_source: str, gradient_profile: GradientProfile | None) -> RecordingMetadata:
     """What a synthetic recording says was measured (no ``initial_disc_C``: the first disc
-    temperature sample, if any, gives it)."""
+    temperature sample, if any, gives it), and the line's gradient profile where it is known."""
     return RecordingMetadata(
         vehicle=VEHICLE,
         load=app.load,
@@ -700,6 +726,7 @@ def _metadata(app: Application, decel_source: str) -> RecordingMetadata:
         ambient_C=app.ambient_C,
         decel_source=decel_source,
         pad_set=app.pad_set,
+        gradient_profile=gradient_profile,
     )
 
 
@@ -755,5 +782,9 @@ def _measure_through_chain(
             if (~np.isnan(table[column])).any()
         },
     }
-    record = Recording(stem=app.stem, metadata=_metadata(app, drawn.decel_source), data=pd.DataFrame(table))
+    record = Recording(
+        stem=app.stem,
+        metadata=_metadata(app, drawn.decel_source, drawn.declared_gradient_profile),
+        data=pd.DataFrame(table),
+    )
     return record, truth
