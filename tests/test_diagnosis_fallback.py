@@ -21,8 +21,12 @@ import pytest
 
 from brakegym import config as cfg
 from brakegym.diagnosis.locate import ResidualTrace, attribution
+from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.diagnosis.signatures import match_signatures
+from brakegym.recordings.format import read_dataset
+from brakegym.recordings.model_form import load_model_form
+from brakegym.recordings.synth import EffectRequest, synthesize
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -32,6 +36,7 @@ MASSES_KG = (121_184.0, 143_888.0, 148_672.0, 121_184.0)  # emu_8axle empty, nor
 SHARE_OF_ETA2 = DiagnosisRules().fallback_share_of_eta2
 START_TOLERANCE = 0.01
 NOISY_START_TOLERANCE = 0.05
+FORCE_TOLERANCE = 0.2
 
 
 def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0):
@@ -118,3 +123,41 @@ def test_a_residual_that_follows_no_signature_matches_nothing():
         return 0.05 * np.sin(2 * np.pi * (40.0 - v) / 0.8 / 6.0)
 
     assert matched(traces_of(oscillating)) == []
+
+
+def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tmp_path):
+    # The screening's full fits switched off (no single, no pair, no forward step, no bootstrap):
+    # what is named comes from the fallback alone. Before it, this set ended "unexplained" with a
+    # residual described as quadratic in speed.
+    truth = {"A_N": 2500.0, "B_N_per_mps": 30.0, "C_N_per_mps2": 20.0}
+    result = synthesize(tmp_path / "set", 6, seed=5, effects=[EffectRequest("running_resistance", truth)])
+    assert result.key["expected_selected"] == ["running_resistance"]
+    rules = DiagnosisRules(top_singles=0, pairs_from=0, forward_pairs=0, bootstrap_replicates=0)
+    report = Diagnoser(read_dataset(result.folder).recordings, rules=rules).run().report
+    assert report["selected"] == ["running_resistance"], report["summary"]
+    assert report["unexplained"] is None
+    fallback = report["fallback_screening"]
+    assert fallback["description"]["axis"] == "speed_mps" and fallback["description"]["form"] == "quadratic"
+    (tried,) = [entry for entry in fallback["signatures"] if entry["effect"] == "running_resistance"]
+    assert tried["signature"] == "force_quadratic_in_speed" and tried["verdict"] == "selected"
+    assert tried["heldout_t"] >= rules.heldout_min_t and tried["delta_bic"] <= rules.select_delta_bic
+    fitted = report["parameters"]
+    for speed in (20.0, 40.0):
+        force = truth["A_N"] + truth["B_N_per_mps"] * speed + truth["C_N_per_mps2"] * speed**2
+        estimate = fitted["A_N"] + fitted["B_N_per_mps"] * speed + fitted["C_N_per_mps2"] * speed**2
+        assert estimate == pytest.approx(force, rel=FORCE_TOLERANCE), (speed, fitted)
+
+
+def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
+    # real_train: pad friction that falls with the contact pressure on every stop, an ED brake on
+    # some service stops; no library effect. The fallback may try an effect, never name it.
+    result = synthesize(tmp_path / "set", 6, seed=5, model_form=load_model_form("real_train"))
+    assert result.key["expected_selected"] == [] and result.key["expected_unexplained"]
+    report = Diagnoser(read_dataset(result.folder).recordings, top_singles=2, pairs_from=0).run().report
+    assert report["selected"] == [], report["summary"]
+    assert report["unexplained"] is not None and report["unexplained_fit"]["axis"]
+    fallback = report["fallback_screening"]
+    assert fallback is not None and fallback["description"]["axis"] == report["unexplained_fit"]["axis"]
+    assert all(entry["verdict"] != "selected" for entry in fallback["signatures"])
+    # Where it lives: the recordings of the segments beyond noise.
+    assert report["mismatch"]["significant"] and report["mismatch"]["segments"]
