@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from brakegym import config as cfg
-from brakegym.diagnosis.locate import ResidualTrace, attribution
+from brakegym.diagnosis.locate import ResidualTrace
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.diagnosis.signatures import match_signatures
@@ -39,15 +39,19 @@ NOISY_START_TOLERANCE = 0.05
 FORCE_TOLERANCE = 0.2
 
 
-def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0):
+def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0, coasting_s=0.0, braking_decel=None):
     """Residual traces of stops from 40 m/s at 0.8 m/s^2, one per mass, sampled at 10 Hz, whose
-    residual deceleration is ``decel_of_speed_and_mass(v, m)`` (plus white noise)."""
+    residual deceleration is ``decel_of_speed_and_mass(v, m)`` (plus white noise); the first
+    ``coasting_s`` seconds coast (the brake not yet acting), and while braking the residual is
+    ``braking_decel(v, m)`` where given (what the friction factors leave of a force)."""
     rng = np.random.default_rng(seed)
     traces = []
     for mass in MASSES_KG:
         time = np.arange(0.0, 50.0, 0.1)
         speed = np.maximum(40.0 - 0.8 * time, 0.0)
         decel = decel_of_speed_and_mass(speed, mass) + noise_mps2 * rng.standard_normal(len(time))
+        if braking_decel is not None:
+            decel = np.where(time < coasting_s, decel, braking_decel(speed, mass))
         moving = speed > 0.0
         position = np.cumsum(speed) * 0.1
         energy = np.cumsum(mass * 0.8 * speed * 0.1) / 16 / 1e6
@@ -61,14 +65,16 @@ def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0):
         }
         recording = SimpleNamespace(mass_kg=mass, stem=f"r{len(traces)}")
         traces.append(
-            ResidualTrace(recording, time, np.zeros_like(time), None, decel, None, axes, moving, moving.copy())
+            ResidualTrace(
+                recording, time, np.zeros_like(time), None, decel, None, axes, moving, moving & (time >= coasting_s)
+            )
         )
     return traces
 
 
 def matched(traces):
     """The signatures the pipeline's rule matches in ``traces``."""
-    return match_signatures(traces, attribution(traces), NOMINAL, SHARE_OF_ETA2)
+    return match_signatures(traces, NOMINAL, SHARE_OF_ETA2)
 
 
 def test_a_force_quadratic_in_speed_matches_a_running_resistance_with_its_coefficients():
@@ -79,6 +85,7 @@ def test_a_force_quadratic_in_speed_matches_a_running_resistance_with_its_coeffi
 
     matches = matched(traces_of(decel))
     assert matches[0].signature == "force_quadratic_in_speed" and matches[0].effect_id == "running_resistance"
+    assert matches[0].phase == "braking"  # these stops do not coast
     assert matches[0].explained_share == pytest.approx(1.0, abs=1e-9)
     expected = {
         "A_N": NOMINAL.A_N + extra["A_N"],
@@ -102,6 +109,18 @@ def test_a_deceleration_the_same_across_loads_matches_a_gradient():
     # A force the same across loads fits a constant deceleration less well where the loads differ.
     others = [m for m in matches if m.effect_id != "gradient"]
     assert all(m.explained_share < matches[0].explained_share for m in others)
+
+
+def test_a_gradient_that_the_friction_factors_absorb_while_braking_matches_on_the_coasting():
+    gradient_permil = -5.8
+
+    def decel(v, m):
+        return np.full_like(v, STANDARD_GRAVITY_MPS2 * gradient_permil / 1000.0)
+
+    traces = traces_of(decel, noise_mps2=0.01, coasting_s=8.0, braking_decel=lambda v, m: np.zeros_like(v))
+    match = next(m for m in matched(traces) if m.effect_id == "gradient")
+    assert match.phase == "coasting"
+    assert match.start["gradient_permil"] == pytest.approx(gradient_permil, rel=NOISY_START_TOLERANCE)
 
 
 def test_a_start_outside_the_bounds_is_moved_onto_the_bound_and_both_are_kept():

@@ -276,7 +276,7 @@ class Diagnoser:
         if residual.description is None:
             return list(singles), None
         nominal = self.recordings[0].vehicle.running_resistance
-        matches = match_signatures(residual.traces, residual.shares, nominal, rules.fallback_share_of_eta2)
+        matches = match_signatures(residual.traces, nominal, rules.fallback_share_of_eta2)
         singles = list(singles)
         tries = []
         for match in matches[: rules.fallback_max_fits]:

@@ -10,23 +10,29 @@ description (:func:`.locate.describe_unexplained`) calls quadratic in speed. Its
 the start the grid missed.
 
 Each signature is a least-squares fit of the unmodified model's residual deceleration (from the
-speed signal, while braking, pooled over the recordings) on the columns an effect's force leaves
-there, each recording divided by its own mass:
+speed signal, pooled over the recordings) on the columns an effect's force leaves there, each
+recording divided by its own mass:
 
 - ``deceleration_constant_across_loads``: a force proportional to the mass (``gradient``; its
   gradient in permil is 1000 times the deceleration over g);
 - ``force_quadratic_in_speed``: a force A + B v + C v^2 the same across loads (``running_resistance``;
   its coefficients are the nominal ones plus the fitted ones).
 
-Every signature is tested on its own axis (speed, the recordings' masses), not only along the axis
+It is fitted on the coasting before the brake command first, then on the braking. While braking,
+each recording's friction factor of the unmodified fit has absorbed most of a force that acts
+all through the stop (a gradient of -5.8 permil leaves a mean residual deceleration near 0 there);
+before the brake acts nothing absorbs it, and the residual is the force itself. A recording without
+coasting has only its braking.
+
+Every signature is tested on its own axes (speed, the recordings' masses), not only along the axis
 the description found best: the eta^2 of a residual that is nearly constant over a stop is alike
 along every axis that grows over the stop, and the best of them is often the time since brake
-onset. A signature matches when it removes ``DiagnosisRules.fallback_share_of_eta2`` times as much
-of the residual's mean square as the bin means along its best state axis do (its eta^2,
-:func:`.locate.attribution`); the matching effects, best share first, at most
+onset. A signature matches in a phase when it removes ``DiagnosisRules.fallback_share_of_eta2``
+times as much of that phase's residual mean square as the bin means along its best state axis do
+(its eta^2, :func:`.locate.correlation_ratio`); the matching effects, best share first, at most
 ``DiagnosisRules.fallback_max_fits`` of them, are fitted and judged as any candidate is
-(:mod:`.judging`). The friction factors of the unmodified fit have absorbed part of what an effect
-explains, so a signature's coefficients are a start, not an estimate.
+(:mod:`.judging`). A signature's coefficients are a start, not an estimate: the fit that follows
+judges all samples.
 """
 
 from __future__ import annotations
@@ -41,11 +47,11 @@ from .. import config as cfg
 from ..effects import EFFECTS
 from ..units import STANDARD_GRAVITY_MPS2
 from .judging import Candidate
-from .locate import ResidualTrace
+from .locate import ATTRIBUTION_BINS, AXES, ResidualTrace, correlation_ratio
 
 __all__ = ["FallbackScreening", "FallbackTry", "SignatureMatch", "match_signatures", "signature_columns"]
 
-#: each signature: the library effect it maps to
+#: the library effect that each signature maps to
 SIGNATURE_EFFECTS = {
     "deceleration_constant_across_loads": "gradient",
     "force_quadratic_in_speed": "running_resistance",
@@ -58,7 +64,8 @@ class SignatureMatch:
 
     signature: str
     effect_id: str
-    explained_share: float  # of the residual deceleration's mean square while braking
+    phase: str  # coasting or braking: the samples it was fitted on
+    explained_share: float  # of the residual deceleration's mean square in that phase
     start: dict[str, float]  # the effect's parameters the signature's coefficients give
 
     def start_inside_bounds(self) -> dict[str, float]:
@@ -70,15 +77,40 @@ class SignatureMatch:
         }
 
 
-def _braking_samples(traces: Sequence[ResidualTrace]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Residual deceleration, speed and the recording's mass at every braking sample with both."""
-    decel, speed, mass = [], [], []
+#: the phases of a stop whose samples the signatures are fitted on, coasting first: before the
+#: brake command no friction factor can absorb a force, so its imprint is all there
+PHASES = ("coasting", "braking")
+
+
+@dataclass
+class PhaseSamples:
+    """The pooled samples of one phase: residual deceleration, speed, each sample's recording's
+    mass, and every state axis of :data:`.locate.AXES`."""
+
+    decel: np.ndarray
+    speed: np.ndarray
+    mass: np.ndarray
+    axes: dict[str, np.ndarray]
+
+
+def phase_samples(traces: Sequence[ResidualTrace], phase: str) -> PhaseSamples:
+    """The samples of ``phase`` (``coasting``: moving before the brake acts; ``braking``) where the
+    residual deceleration and the speed are known."""
+    decel, speed, mass, axes = [], [], [], {axis: [] for axis, _ in AXES}
     for trace in traces:
-        rows = trace.braking & ~np.isnan(trace.kinematic_decel) & ~np.isnan(trace.axes["speed_mps"])
+        in_phase = trace.braking if phase == "braking" else trace.moving & ~trace.braking
+        rows = in_phase & ~np.isnan(trace.kinematic_decel) & ~np.isnan(trace.axes["speed_mps"])
         decel.append(trace.kinematic_decel[rows])
         speed.append(trace.axes["speed_mps"][rows])
         mass.append(np.full(int(rows.sum()), trace.recording.mass_kg))
-    return np.concatenate(decel), np.concatenate(speed), np.concatenate(mass)
+        for axis in axes:
+            axes[axis].append(trace.axes[axis][rows])
+    return PhaseSamples(
+        np.concatenate(decel),
+        np.concatenate(speed),
+        np.concatenate(mass),
+        {axis: np.concatenate(values) for axis, values in axes.items()},
+    )
 
 
 def signature_columns(signature: str, speed_mps: np.ndarray, mass_kg: np.ndarray) -> np.ndarray:
@@ -106,37 +138,44 @@ def effect_start(signature: str, coefficients: np.ndarray, nominal: cfg.RunningR
 
 
 def match_signatures(
-    traces: Sequence[ResidualTrace],
-    shares: dict[str, dict[str, float]],
-    nominal: cfg.RunningResistance,
-    share_of_eta2: float,
+    traces: Sequence[ResidualTrace], nominal: cfg.RunningResistance, share_of_eta2: float
 ) -> list[SignatureMatch]:
-    """Every signature fitted to the pooled residual deceleration while braking, those that remove
-    at least ``share_of_eta2`` times the best eta^2 of the residual deceleration along a state axis
-    (``shares``, :func:`.locate.attribution`), best share first (ties in the order of
-    ``SIGNATURE_EFFECTS``). Both shares are against zero: an offset is a mismatch too.
+    """Every signature fitted to the pooled residual deceleration of each phase (coasting, then
+    braking); a signature matches in a phase when it removes at least ``share_of_eta2`` times the
+    best eta^2 of that phase's residual along a state axis (:func:`.locate.correlation_ratio`).
+    Each matching signature once, from the phase where it matched first (coasting: its
+    coefficients there are the force itself, not what the friction factors left of it), best share
+    first (ties in the order of ``SIGNATURE_EFFECTS``). Both shares are against zero: an offset is
+    a mismatch too.
 
     Against eta^2, not the whole mean square: the deceleration is differentiated from the speed
     signal, and its noise leaves most of the mean square to no function of the state at all; the
     bin means along the best axis remove what any function of one axis can. A signature that
     removes about as much has found the structure the residual has."""
-    best_eta2 = max(shares.get("decel", {}).values(), default=0.0)
-    decel, speed, mass = _braking_samples(traces)
-    total = float(np.mean(decel**2)) if decel.size else 0.0
-    if decel.size < 10 or total == 0.0 or best_eta2 <= 0.0:
-        return []
-    matches = []
-    for signature, effect_id in SIGNATURE_EFFECTS.items():
-        columns = signature_columns(signature, speed, mass)
-        # Scaled columns: 1/m, v/m and v^2/m differ by orders of magnitude.
-        scale = np.linalg.norm(columns, axis=0)
-        scaled, *_ = np.linalg.lstsq(columns / scale, decel, rcond=None)
-        coefficients = scaled / scale
-        share = 1.0 - float(np.mean((decel - columns @ coefficients) ** 2)) / total
-        if share >= share_of_eta2 * best_eta2:
-            matches.append(SignatureMatch(signature, effect_id, share, effect_start(signature, coefficients, nominal)))
+    matches: dict[str, SignatureMatch] = {}
+    for phase in PHASES:
+        samples = phase_samples(traces, phase)
+        decel = samples.decel
+        total = float(np.mean(decel**2)) if decel.size else 0.0
+        if decel.size < 4 * ATTRIBUTION_BINS or total == 0.0:
+            continue
+        best_eta2 = max(correlation_ratio(values, decel) for values in samples.axes.values())
+        if best_eta2 <= 0.0:
+            continue
+        for signature, effect_id in SIGNATURE_EFFECTS.items():
+            if signature in matches:
+                continue
+            columns = signature_columns(signature, samples.speed, samples.mass)
+            # Scaled columns: 1/m, v/m and v^2/m differ by orders of magnitude.
+            scale = np.linalg.norm(columns, axis=0)
+            scaled, *_ = np.linalg.lstsq(columns / scale, decel, rcond=None)
+            coefficients = scaled / scale
+            share = 1.0 - float(np.mean((decel - columns @ coefficients) ** 2)) / total
+            if share >= share_of_eta2 * best_eta2:
+                start = effect_start(signature, coefficients, nominal)
+                matches[signature] = SignatureMatch(signature, effect_id, phase, share, start)
     order = list(SIGNATURE_EFFECTS)
-    return sorted(matches, key=lambda m: (-m.explained_share, order.index(m.signature)))
+    return sorted(matches.values(), key=lambda m: (-m.explained_share, order.index(m.signature)))
 
 
 @dataclass
@@ -183,6 +222,7 @@ def _try_entry(attempt: FallbackTry, selected: Candidate | None) -> dict[str, An
         verdict = "fails the rules"
     return {
         "signature": match.signature,
+        "phase": match.phase,
         "explained_share": round(match.explained_share, 4),
         "effect": match.effect_id,
         "start": {name: round(value, 5) for name, value in match.start.items()},
