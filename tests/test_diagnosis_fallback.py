@@ -14,6 +14,7 @@ noise-free residual carries (within 5 % with noise of the accelerometer's size),
 running resistance within 20 % of the truth's force at 20 m/s and 40 m/s.
 """
 
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -152,8 +153,12 @@ def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tm
     result = synthesize(tmp_path / "set", 6, seed=5, effects=[EffectRequest("running_resistance", truth)])
     assert result.key["expected_selected"] == ["running_resistance"]
     rules = DiagnosisRules(top_singles=0, pairs_from=0, forward_pairs=0, bootstrap_replicates=0)
-    report = Diagnoser(read_dataset(result.folder).recordings, rules=rules).run().report
+    recordings = read_dataset(result.folder).recordings
+    report = Diagnoser(recordings, rules=rules).run().report
     assert report["selected"] == ["running_resistance"], report["summary"]
+    # The same data, the same report, bit for bit.
+    again = Diagnoser(recordings, rules=rules).run().report
+    assert json.dumps(again, sort_keys=True) == json.dumps(report, sort_keys=True)
     assert report["unexplained"] is None
     fallback = report["fallback_screening"]
     assert fallback["description"]["axis"] == "speed_mps" and fallback["description"]["form"] == "quadratic"
