@@ -62,8 +62,9 @@ class DiagnosisRules:
     #: a channel whose residual RMS is this many noise levels or more is a mismatch
     mismatch_rms_over_noise: float = 2.0
     #: before the verdict "unexplained", a library effect's signature (:mod:`.signatures`) matches
-    #: the residual deceleration when its least-squares fit removes this share of what the bin
-    #: means along the residual's best state axis remove (its eta^2). Relative, not a share of
+    #: the residual deceleration of a phase (the coasting, the braking) when its least-squares fit
+    #: removes this share of what the bin means along that residual's best state axis remove (its
+    #: eta^2). Relative, not a share of
     #: the whole mean square: the deceleration differentiated from the speed signal is mostly
     #: noise, and no function of the state removes half of it. ASSUMED: a signature that
     #: explains four fifths of what the best axis does has found its structure; the fit and the

@@ -77,15 +77,15 @@ class SignatureMatch:
         }
 
 
-#: the phases of a stop whose samples the signatures are fitted on, coasting first: before the
-#: brake command no friction factor can absorb a force, so its imprint is all there
+#: the phases of a stop whose samples the signatures are fitted on, coasting first (before the
+#: brake command no friction factor can absorb a force, so its imprint is all there)
 PHASES = ("coasting", "braking")
 
 
 @dataclass
 class PhaseSamples:
     """The pooled samples of one phase: residual deceleration, speed, each sample's recording's
-    mass, and every state axis of :data:`.locate.AXES`."""
+    mass, and every state axis (``AXES`` of :mod:`.locate`)."""
 
     decel: np.ndarray
     speed: np.ndarray
