@@ -5,9 +5,9 @@ each matching effect is fitted from the start its signature gives and judged by 
 Unit tests on constructed residuals: a force quadratic in speed and the same across loads is a
 running resistance with its coefficients as the start, a deceleration the same across loads
 (a force proportional to the mass) a gradient, and a residual that follows neither matches
-nothing. End to end on sets written by ``brakegym synth``: a running resistance that the
-screening's grid misses is named by the fallback, and physics outside the library (``real_train``:
-contact-pressure friction and an ED brake) still ends unexplained.
+nothing. End to end on sets written by ``brakegym synth``: a running resistance is named by
+the fallback alone (the screening's full fits switched off), and physics outside the library (``real_train``:
+contact-pressure friction) still ends unexplained, the effect the fallback tried rejected.
 
 The thresholds were fixed before the tests first ran: a start within 1 % of the coefficients a
 noise-free residual carries (within 5 % with noise of the accelerometer's size), the fitted
@@ -25,6 +25,7 @@ from brakegym.diagnosis.locate import ResidualTrace
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.diagnosis.signatures import match_signatures
+from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.format import read_dataset
 from brakegym.recordings.model_form import load_model_form
 from brakegym.recordings.synth import EffectRequest, synthesize
@@ -173,15 +174,30 @@ def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tm
 
 
 def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
-    # real_train: pad friction that falls with the contact pressure on every stop, an ED brake on
-    # some service stops; no library effect. The fallback may try an effect, never name it.
-    result = synthesize(tmp_path / "set", 6, seed=5, model_form=load_model_form("real_train"))
+    # A set of the blind benchmark's train-like run (seed 21, set 4: measurement chain `real`,
+    # model form `real_train`, no library effect): pad friction that falls with the contact
+    # pressure on every stop. Its coasting matches a running resistance's signature; the fallback
+    # fits it, and the rules must reject it.
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=520540898,
+        measurement_chain=load_measurement_chain("real"),
+        model_form=load_model_form("real_train"),
+    )
     assert result.key["expected_selected"] == [] and result.key["expected_unexplained"]
-    report = Diagnoser(read_dataset(result.folder).recordings, top_singles=2, pairs_from=0).run().report
+    report = Diagnoser(read_dataset(result.folder).recordings).run().report
     assert report["selected"] == [], report["summary"]
     assert report["unexplained"] is not None and report["unexplained_fit"]["axis"]
     fallback = report["fallback_screening"]
     assert fallback is not None and fallback["description"]["axis"] == report["unexplained_fit"]["axis"]
-    assert all(entry["verdict"] != "selected" for entry in fallback["signatures"])
+    assert fallback["signatures"], "the fallback tried no effect"
+    for entry in fallback["signatures"]:
+        assert entry["verdict"] != "selected", entry
+        assert (
+            entry["heldout_t"] is None
+            or entry["heldout_t"] < DiagnosisRules().heldout_min_t
+            or not entry["relevant_size"]
+        ), entry
     # Where it lives: the recordings of the segments beyond noise.
     assert report["mismatch"]["significant"] and report["mismatch"]["segments"]
