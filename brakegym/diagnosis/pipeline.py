@@ -14,15 +14,20 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
 5. **Fit** the best ``top_singles`` effects in full from their best screened points (only those
    whose screening beats the unmodified model), and the pairs of the best ``pairs_from``.
-6. **Forward step**: with a single selected by the rules of :mod:`.judging`, every other effect is
+6. **Fallback as a screening source**: with no single passing the rules of :mod:`.judging` and a
+   residual the data-driven description would call unexplained, each library effect whose
+   signature the residual matches (:mod:`.signatures`) is fitted from the start the signature
+   gives, and judged with the singles. The screening's coarse grid can miss an effect's valley
+   (a running resistance with a large quadratic term) that its signature in the residual shows.
+7. **Forward step**: with a single selected by the rules of :mod:`.judging`, every other effect is
    screened again on top of it (its parameters held, the nuisance refitted from its fit), and the
    best ``forward_pairs`` of those that gain on it are fitted in full as pairs with it. A second
    effect is often hidden in the unmodified model's residual by the first one's (a friction level
    under a running resistance 30 times its imprint), so neither the screening against the
    unmodified model nor the pairs of the best singles reach it.
-7. **Judge** them by BIC, held-out error and physical relevance (:mod:`.judging`); a pair replaces
+8. **Judge** them by BIC, held-out error and physical relevance (:mod:`.judging`); a pair replaces
    the selected single only when it beats the single by the same rules.
-8. **Report** parameters with 95 % intervals, residuals before and after, candidates the data
+9. **Report** parameters with 95 % intervals, residuals before and after, candidates the data
    cannot tell apart (two singles, or the selected single and a pair with it) and what would
    separate them, and with no effect selected but a residual beyond noise, a data-driven
    description of what is unexplained (:mod:`.report`).
@@ -55,6 +60,7 @@ from .inputs import chain_report, zero_corrected
 from .judging import Candidate, Judge
 from .locate import (
     NOISE_CHANNELS,
+    ResidualTrace,
     attribution,
     describe_unexplained,
     estimate_noise_models,
@@ -65,6 +71,7 @@ from .noise import noise_model_entry
 from .report import build_report, candidate_entries
 from .rules import DiagnosisRules
 from .screening import ScreenedPoint, Screening, integer_neighbours
+from .signatures import FallbackScreening, FallbackTry, match_signatures
 from .weighting import CHANNEL_NAMES, Weighting
 
 __all__ = ["Diagnoser", "Diagnosis", "diagnose"]
@@ -112,6 +119,7 @@ class Diagnoser:
         # the report describes the recordings as they were read.
         self.problem = FitProblem([zero_corrected(r) for r in self.recordings], fit_noise)
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs
+        self._residual: BaselineResidual | None = None
 
     def _evidence(self, baseline: FitResult) -> Evidence:
         decels = [r.channel(DECEL) for r in self.recordings if r.channel(DECEL) is not None]
@@ -135,6 +143,10 @@ class Diagnoser:
         singles = self._fit_singles(screening, screened, judge, baseline)
         pairs = self._fit_pairs(singles, judge)
         single = judge.best_single(singles)
+        fallback = None
+        if single is None:
+            singles, fallback = self._fallback_screening(weighting, baseline, singles, judge)
+            single = judge.best_single(singles)
         forward: dict[str, ScreenedPoint] = {}
         if single is not None and self.rules.forward_pairs > 0:
             forward_pairs, forward = self._forward_pairs(single, pairs, judge, evidence)
@@ -157,6 +169,7 @@ class Diagnoser:
             judge.chi2_base,
         )
         report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
+        report["fallback_screening"] = fallback.report_entry(verdict.selected) if fallback is not None else None
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
@@ -249,31 +262,84 @@ class Diagnoser:
             new_pairs.append(judge.candidate(ids, fit))
         return new_pairs, screened
 
+    def _fallback_screening(
+        self, weighting: Weighting, baseline: FitResult, singles: Sequence[Candidate], judge: Judge
+    ) -> tuple[list[Candidate], FallbackScreening | None]:
+        """Before the verdict "unexplained" (no single passes, and the residual is described):
+        each library effect whose signature the residual matches (:mod:`.signatures`), fitted from
+        the start the signature gives and judged as any single. A fit that beats the screening's
+        fit of the same effect in chi^2 replaces it among the singles; the verdict then judges them
+        all by the same rules. Returns the singles, best BIC first, and what the fallback tried
+        (None where it did not run)."""
+        problem, rules = self.problem, self.rules
+        residual = self._baseline_residual(weighting, baseline)
+        if residual.description is None:
+            return list(singles), None
+        nominal = self.recordings[0].vehicle.running_resistance
+        matches = match_signatures(residual.traces, nominal, rules.fallback_share_of_eta2)
+        singles = list(singles)
+        tries = []
+        for match in matches[: rules.fallback_max_fits]:
+            start_values = match.start_inside_bounds()
+            free = problem.free_parameters([match.effect_id], {})
+            start = np.concatenate([[start_values[p.name] for p in free], baseline.x[len(baseline.free) :]])
+            fit = problem.fit([match.effect_id], start, max_iterations=rules.fit_iterations)
+            candidate = judge.candidate((match.effect_id,), fit)
+            # Its figures against the unmodified model, for the report also where it is not kept.
+            candidate.passes = judge.beats(candidate, 0.0, judge.base_sse, baseline.residual)
+            screened = next((c for c in singles if c.effect_ids == candidate.effect_ids), None)
+            replaces = screened is None or candidate.chi2_eff < screened.chi2_eff
+            if replaces:
+                singles = [c for c in singles if c is not screened] + [candidate]
+            tries.append(FallbackTry(match, candidate, replaces))
+        singles.sort(key=lambda c: c.delta_bic)
+        return singles, FallbackScreening(residual.description, tries)
+
+    def _baseline_residual(self, weighting: Weighting, baseline: FitResult) -> BaselineResidual:
+        """The unmodified model's residual traces, where they exceed the noise, and their
+        data-driven description (computed once)."""
+        if self._residual is None:
+            problem, rules = self.problem, self.rules
+            traces = [residual_trace(r) for r in baseline.replays]
+            shares = attribution(traces)
+            base_rms = weighting.rms(baseline.residual)
+            over_noise = {c: base_rms[c] / problem.noise[c] for c in base_rms}
+            channels = [CHANNEL_NAMES[c] for c, ratio in over_noise.items() if ratio >= rules.mismatch_rms_over_noise]
+            best_eta = max((max(v.values()) for v in shares.values()), default=0.0)
+            described = best_eta >= rules.unexplained_eta2 and bool(channels)
+            description = describe_unexplained(traces, shares) if described else None
+            self._residual = BaselineResidual(traces, shares, over_noise, channels, description)
+        return self._residual
+
     def _locate(
         self, weighting: Weighting, baseline: FitResult, selected: Candidate | None, significant_anyway: bool
     ) -> tuple[dict[str, Any], dict[str, Any] | None]:
         """Where the unmodified model misses the data: the mismatch entry of the report, and with
         nothing selected but a residual beyond noise, the data-driven description."""
-        problem, rules = self.problem, self.rules
-        traces = [residual_trace(r) for r in baseline.replays]
-        shares = attribution(traces)
-        base_rms = weighting.rms(baseline.residual)
-        over_noise = {c: base_rms[c] / problem.noise[c] for c in base_rms}
-        channels = [CHANNEL_NAMES[c] for c, ratio in over_noise.items() if ratio >= rules.mismatch_rms_over_noise]
-        unexplained = None
-        if selected is None:
-            best_eta = max((max(v.values()) for v in shares.values()), default=0.0)
-            if best_eta >= rules.unexplained_eta2 and channels:
-                unexplained = describe_unexplained(traces, shares)
+        residual = self._baseline_residual(weighting, baseline)
+        unexplained = residual.description if selected is None else None
         significant = selected is not None or unexplained is not None or significant_anyway
         mismatch = {
             "significant": significant,
-            "channels": channels if significant else [],
-            "segments": segments(traces, problem.noise),
-            "rms_over_noise": {CHANNEL_NAMES[c]: round(v, 2) for c, v in over_noise.items()},
-            "attribution_eta2": shares,
+            "channels": residual.channels if significant else [],
+            "segments": segments(residual.traces, self.problem.noise),
+            "rms_over_noise": {CHANNEL_NAMES[c]: round(v, 2) for c, v in residual.over_noise.items()},
+            "attribution_eta2": residual.shares,
         }
         return mismatch, unexplained
+
+
+@dataclass
+class BaselineResidual:
+    """The unmodified model's residual: its traces, eta^2 per axis, RMS over noise per channel,
+    the channels beyond ``mismatch_rms_over_noise`` and the data-driven description (None where
+    no axis reaches ``unexplained_eta2`` or no channel is a mismatch)."""
+
+    traces: list[ResidualTrace]
+    shares: dict[str, dict[str, float]]
+    over_noise: dict[str, float]
+    channels: list[str]
+    description: dict[str, Any] | None
 
 
 def _free_names(problem: FitProblem, effect_id: str, fixed: dict[str, float]) -> list[str]:

@@ -61,6 +61,18 @@ class DiagnosisRules:
     unexplained_eta2: float = 0.10
     #: a channel whose residual RMS is this many noise levels or more is a mismatch
     mismatch_rms_over_noise: float = 2.0
+    #: before the verdict "unexplained", a library effect's signature (:mod:`.signatures`) matches
+    #: the residual deceleration of a phase (the coasting, the braking) when its least-squares fit
+    #: removes this share of what the bin means along that residual's best state axis remove (its
+    #: eta^2). Relative, not a share of
+    #: the whole mean square: the deceleration differentiated from the speed signal is mostly
+    #: noise, and no function of the state removes half of it. ASSUMED: a signature that
+    #: explains four fifths of what the best axis does has found its structure; the fit and the
+    #: rules of the selection judge what it starts
+    fallback_share_of_eta2: float = 0.8
+    #: the most matched signatures whose effects the fallback fits in full, best share first (each
+    #: costs a candidate's fit and its held-out prediction)
+    fallback_max_fits: int = 2
 
     # -- screening ------------------------------------------------------------------------------
     #: grid points per parameter of a one-parameter effect, an even number since the middle of
