@@ -76,8 +76,8 @@ class Candidate:
     relevant: bool = True
     passes: bool = False  # beats the unmodified model by every rule (singles)
     acting_gain: float = math.nan  # mean share of held-out error removed over the recordings it acts on
-    #: against the last reference it was judged against: the BIC rule (or for an added friction
-    #: level, its shared-shift test) and the held-out rule
+    #: whether it passed the BIC rule (or for an added friction level, its shared-shift test) and
+    #: the held-out rule against the last reference it was judged against
     passes_bic_rule: bool = False
     passes_heldout_rule: bool = False
     report: dict[str, Any] = field(default_factory=dict)  # what the report says of it
@@ -102,7 +102,7 @@ class FrictionLevelShift:
 
 
 def friction_level_shift(problem: FitProblem, fit: FitResult) -> FrictionLevelShift:
-    """The shared-shift test of the friction level of ``fit``: with n recordings whose friction
+    """The shared-shift test of the friction level of ``fit``. With n recordings whose friction
     factors scatter by sigma about a level, the level is known to sigma / sqrt(n), and a level
     that differs from 1 by more than a few of those is a shift shared by all recordings, not
     scatter. Sigma is the larger of the friction-factor prior's (the campaign's scatter, ASSUMED)
@@ -170,7 +170,8 @@ class Judge:
     ) -> bool:
         """Whether ``candidate`` beats a reference (the unmodified model, or the selected single
         ``reference_ids`` for a pair) by every rule; records its held-out figures in its report. A
-        friction level the reference lacks is judged by :meth:`_friction_level_rules`."""
+        friction level the reference lacks is judged as a shift shared by the recordings' friction
+        factors (see the module documentation)."""
         problem, rules = self.problem, self.rules
         d = reference_sse - candidate.heldout.sse
         gain = float(np.sum(d) / max(np.sum(reference_sse), 1e-12))
@@ -200,8 +201,8 @@ class Judge:
         return candidate.relevant and candidate.passes_bic_rule and candidate.passes_heldout_rule
 
     def _friction_level_rules(self, candidate: Candidate, heldout_removed: np.ndarray) -> tuple[bool, float]:
-        """The two rules for a friction level added to the reference: its shared-shift test (in
-        place of the BIC rule; recorded in the report as ``friction_level_shift``), and the paired
+        """The two rules for a friction level added to the reference, its shared-shift test (in
+        place of the BIC rule; recorded in the report as ``friction_level_shift``) and the paired
         t of the effective held-out error removed from each recording, over every recording.
 
         The held-out error a level removes lies in each recording's friction-factor row, whose

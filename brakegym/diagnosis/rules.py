@@ -54,9 +54,9 @@ class DiagnosisRules:
     unconfirmed_min_gain: float = 0.10
     #: two passing candidates whose held-out errors are within this share may be indistinguishable
     indistinguishable_heldout: float = 0.10
-    #: a friction level added to a reference is judged as a shift shared by the recordings'
-    #: friction factors (:func:`.judging.friction_level_shift`): in place of the BIC rule, the
-    #: fitted level must lie this many standard errors of the factors' mean off 1. Its evidence is
+    #: in place of the BIC rule, a friction level added to a reference must lie this many standard
+    #: errors of the factors' mean off 1, a shift shared by the recordings' friction factors
+    #: (:func:`.judging.friction_level_shift`). Its evidence is
     #: n factors, not the samples: the BIC's penalty of log(effective samples) per parameter and
     #: its margin of 10 ask for a shift of 7-8 % on 8 recordings, however tightly they agree.
     friction_level_min_z: float = 2.0
