@@ -8,9 +8,11 @@ The tolerances were fixed before the tests first ran: a fitted level within 0.02
 (the factors' mean is known to about 0.05 / sqrt(8) = 0.018), and the 95 % interval holding it.
 """
 
+import numpy as np
 import pytest
 
 from brakegym.diagnosis import diagnose
+from brakegym.diagnosis.judging import shared_friction_shift
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -68,3 +70,18 @@ def test_selects_nothing_when_the_base_friction_is_moved_within_its_scatter(tmp_
     report = diagnose(result.folder, top_singles=2, pairs_from=0).report
     assert report["selected"] == [], report["summary"]
     assert report["parameters"] == {}
+
+
+def test_the_shared_shift_is_judged_against_the_larger_of_the_prior_and_the_factors_scatter():
+    prior_sigma = 0.05
+    # Factors that agree more tightly than the prior says: the prior's scatter sets the error.
+    tight = 1.05 * np.array([0.99, 1.01, 1.0, 0.995, 1.005, 1.0, 0.99, 1.01])
+    shift = shared_friction_shift(1.05, tight, prior_sigma)
+    assert shift.scatter == prior_sigma
+    assert shift.standard_error == pytest.approx(prior_sigma / np.sqrt(8))
+    assert shift.z == pytest.approx(0.05 / (prior_sigma / np.sqrt(8)))
+    # Factors that scatter more than the prior says leave the level less certain.
+    wide = 1.05 * np.array([0.9, 1.1, 1.0, 0.92, 1.08, 1.0, 0.9, 1.1])
+    shift = shared_friction_shift(1.05, wide, prior_sigma)
+    assert shift.scatter == pytest.approx(np.std(wide / 1.05, ddof=1))
+    assert abs(shift.z) < 2.0

@@ -102,18 +102,23 @@ class FrictionLevelShift:
 
 
 def friction_level_shift(problem: FitProblem, fit: FitResult) -> FrictionLevelShift:
-    """The shared-shift test of the friction level of ``fit``. With n recordings whose friction
-    factors scatter by sigma about a level, the level is known to sigma / sqrt(n), and a level
-    that differs from 1 by more than a few of those is a shift shared by all recordings, not
-    scatter. Sigma is the larger of the friction-factor prior's (the campaign's scatter, ASSUMED)
-    and the factors' own spread about the fitted level: recordings that scatter more than the
-    prior says leave their mean less certain, and never more certain than the prior says."""
-    n = problem.n
-    p = len(fit.free)
+    """The shared-shift test of the friction level of ``fit`` (:func:`shared_friction_shift`)."""
+    n, p = problem.n, len(fit.free)
     level = float(fit.parameters[FrictionLevel.parameters[0].name])
-    scatter_about_level = fit.x[p + 2 * n : p + 3 * n] / level
-    own = float(np.std(scatter_about_level, ddof=1)) if n > 1 else 0.0
-    scatter = max(problem.prior_sigma, own)
+    return shared_friction_shift(level, fit.x[p + 2 * n : p + 3 * n], problem.prior_sigma)
+
+
+def shared_friction_shift(level: float, factors: np.ndarray, prior_sigma: float) -> FrictionLevelShift:
+    """The shared-shift test of a friction ``level`` against the recordings' whole friction
+    ``factors`` (level times each one's scatter). With n recordings whose factors scatter by sigma
+    about a level, the level is known to sigma / sqrt(n), and a level that differs from 1 by more
+    than a few of those is a shift shared by all recordings, not scatter. Sigma is the larger of
+    the friction-factor prior's ``prior_sigma`` (the campaign's scatter, ASSUMED) and the factors'
+    own spread about the level: recordings that scatter more than the prior says leave their mean
+    less certain, and never more certain than the prior says."""
+    n = len(factors)
+    own = float(np.std(np.asarray(factors) / level, ddof=1)) if n > 1 else 0.0
+    scatter = max(prior_sigma, own)
     standard_error = scatter / math.sqrt(n)
     return FrictionLevelShift(level, scatter, standard_error, (level - 1.0) / standard_error)
 

@@ -13,7 +13,9 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
    which they live (:mod:`.locate`).
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
 5. **Fit** the best ``top_singles`` effects in full from their best screened points (only those
-   whose screening beats the unmodified model), and the pairs of the best ``pairs_from``.
+   whose screening beats the unmodified model), and the pairs of the best ``pairs_from``; the
+   friction level too where its screened point shows a shift shared by the recordings' friction
+   factors (:func:`.judging.shared_friction_shift`), however it ranks.
 6. **Forward step**: with a single selected by the rules of :mod:`.judging`, every other effect is
    screened again on top of it (its parameters held, the nuisance refitted from its fit), and the
    best ``forward_pairs`` of those that gain on it are fitted in full as pairs with it. A second
@@ -44,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence
+from ..effects import EFFECTS, Evidence, FrictionLevel
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -52,7 +54,7 @@ from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
 from .inputs import chain_report, zero_corrected
-from .judging import Candidate, Judge
+from .judging import Candidate, Judge, shared_friction_shift
 from .locate import (
     NOISE_CHANNELS,
     attribution,
@@ -179,7 +181,7 @@ class Diagnoser:
         order = sorted(screened, key=lambda e: screened[e].chi2)
         promising = [e for e in order if screened[e].chi2 < judge.chi2_base - rules.screen_min_gain]
         singles = []
-        for effect_id in promising[: rules.top_singles]:
+        for effect_id in self._with_shared_shift(promising, rules.top_singles, screened):
             point = screened[effect_id]
             start = np.concatenate([point.theta, point.nuisance])
             fits = [problem.fit([effect_id], start, fixed=point.fixed, max_iterations=rules.fit_iterations)]
@@ -232,7 +234,7 @@ class Diagnoser:
             if screened[e].chi2 < single.chi2_eff - rules.screen_min_gain and frozenset((selected_id, e)) not in fitted
         ]
         new_pairs = []
-        for effect_id in promising[: rules.forward_pairs]:
+        for effect_id in self._with_shared_shift(promising, rules.forward_pairs, screened):
             point = screened[effect_id]
             ids = tuple(sorted((selected_id, effect_id), key=list(EFFECTS).index))
             fits = []
@@ -248,6 +250,23 @@ class Diagnoser:
             fit = min(fits, key=lambda f: judge.weighting.chi2(f.residual))
             new_pairs.append(judge.candidate(ids, fit))
         return new_pairs, screened
+
+    def _with_shared_shift(self, promising: list[str], count: int, screened: dict[str, ScreenedPoint]) -> list[str]:
+        """The first ``count`` of the ``promising`` effects (best screened first), and the friction
+        level beyond them where its screened point shows a shift shared by the recordings'
+        friction factors (:func:`.judging.shared_friction_shift`). A level's chi^2 gain is its
+        factors' prior rows alone, about z^2, which any effect that fits some structure of the
+        data outranks (a rotating mass, a speed-sensor scale), so the ranking left it unfitted."""
+        chosen = promising[:count]
+        level = FrictionLevel.id
+        if count > 0 and level in promising[count:]:
+            point = screened[level]
+            n = self.problem.n
+            factors = point.nuisance[2 * n : 3 * n]
+            shift = shared_friction_shift(float(point.theta[0]), factors, self.problem.prior_sigma)
+            if abs(shift.z) >= self.rules.friction_level_min_z:
+                chosen.append(level)
+        return chosen
 
     def _locate(
         self, weighting: Weighting, baseline: FitResult, selected: Candidate | None, significant_anyway: bool
