@@ -15,7 +15,9 @@ The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]
   shift shared by all recordings costs n times the prior: only a set-wide effect (a friction
   level, a heavier train, a failed unit) explains a shift beyond what the scatter explains.
   With the ``friction_level`` effect in a fit, ``k`` is the recording's whole friction factor
-  (level times scatter) and the prior holds k / level to 1.
+  (level times scatter) and the prior holds k / level to 1: the fitted level is the shift the
+  factors share, and the data rows do not depend on it, so its evidence is the n factors alone
+  (judged as such: :func:`.judging.friction_level_shift`).
 
 Residuals are measured minus simulated, divided by each channel's noise, on the samples while
 moving (deceleration also without the samples next to the measured stop, where traces that stop

@@ -32,6 +32,17 @@ data two confounders' BICs can differ by hundreds while neither predicts a held-
 better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
 recordings and removes ``unconfirmed_min_gain`` of their held-out error is reported unconfirmed (a
 t over one or two recordings is no evidence of consistency).
+
+A friction level added to a reference (the unmodified model, or a selected single without one) is
+judged as what the data hold of it: a shift shared by the recordings' friction factors, against
+their scatter about it (:func:`friction_level_shift`). The data rows see only each recording's
+factor, so the level's whole evidence is the n factors: in place of the BIC rule, its shift must
+be ``friction_level_min_z`` standard errors of the factors' mean, and its held-out rule is the
+paired t of the held-out error it removes over every recording (the level acts on each one's
+friction; each recording's factor, predicted by the level fitted without it, is the part that
+changes). The BIC's penalty of log(effective samples) and margin of 10 would ask for a shift of
+7-8 % on 8 recordings, and a shift that moves the factors' prior rows by less than a noise sigma
+acted on no recording at all.
 The thresholds are :class:`.rules.DiagnosisRules`.
 """
 
@@ -45,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence
+from ..effects import EFFECTS, Evidence, FrictionLevel
 from ..statistics import paired_t
 from .fitting import FitProblem, FitResult
 from .heldout import HeldOut, held_out
@@ -65,7 +76,51 @@ class Candidate:
     relevant: bool = True
     passes: bool = False  # beats the unmodified model by every rule (singles)
     acting_gain: float = math.nan  # mean share of held-out error removed over the recordings it acts on
+    #: whether it passed the BIC rule (or for an added friction level, its shared-shift test) and
+    #: the held-out rule against the last reference it was judged against
+    passes_bic_rule: bool = False
+    passes_heldout_rule: bool = False
     report: dict[str, Any] = field(default_factory=dict)  # what the report says of it
+
+
+@dataclass(frozen=True)
+class FrictionLevelShift:
+    """A fitted friction level read as the shift shared by the recordings' friction factors."""
+
+    level: float  # the fitted mu_scale: where the factors' prior is centred
+    scatter: float  # per-recording friction scatter about the level the test assumes
+    standard_error: float  # of the factors' mean: scatter / sqrt(n)
+    z: float  # (level - 1) / standard_error
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "level": round(self.level, 5),
+            "scatter": round(self.scatter, 5),
+            "standard_error": round(self.standard_error, 5),
+            "z": round(self.z, 2),
+        }
+
+
+def friction_level_shift(problem: FitProblem, fit: FitResult) -> FrictionLevelShift:
+    """The shared-shift test of the friction level of ``fit`` (:func:`shared_friction_shift`)."""
+    n, p = problem.n, len(fit.free)
+    level = float(fit.parameters[FrictionLevel.parameters[0].name])
+    return shared_friction_shift(level, fit.x[p + 2 * n : p + 3 * n], problem.prior_sigma)
+
+
+def shared_friction_shift(level: float, factors: np.ndarray, prior_sigma: float) -> FrictionLevelShift:
+    """The shared-shift test of a friction ``level`` against the recordings' whole friction
+    ``factors`` (level times each one's scatter). With n recordings whose factors scatter by sigma
+    about a level, the level is known to sigma / sqrt(n), and a level that differs from 1 by more
+    than a few of those is a shift shared by all recordings, not scatter. Sigma is the larger of
+    the friction-factor prior's ``prior_sigma`` (the campaign's scatter, ASSUMED) and the factors'
+    own spread about the level: recordings that scatter more than the prior says leave their mean
+    less certain, and never more certain than the prior says."""
+    n = len(factors)
+    own = float(np.std(np.asarray(factors) / level, ddof=1)) if n > 1 else 0.0
+    scatter = max(prior_sigma, own)
+    standard_error = scatter / math.sqrt(n)
+    return FrictionLevelShift(level, scatter, standard_error, (level - 1.0) / standard_error)
 
 
 @dataclass
@@ -111,10 +166,17 @@ class Judge:
         return candidate
 
     def beats(
-        self, candidate: Candidate, reference_bic: float, reference_sse: np.ndarray, reference_residual: np.ndarray
+        self,
+        candidate: Candidate,
+        reference_bic: float,
+        reference_sse: np.ndarray,
+        reference_residual: np.ndarray,
+        reference_ids: tuple[str, ...] = (),
     ) -> bool:
         """Whether ``candidate`` beats a reference (the unmodified model, or the selected single
-        for a pair) by every rule; records its held-out figures in its report."""
+        ``reference_ids`` for a pair) by every rule; records its held-out figures in its report. A
+        friction level the reference lacks is judged as a shift shared by the recordings' friction
+        factors (see the module documentation)."""
         problem, rules = self.problem, self.rules
         d = reference_sse - candidate.heldout.sse
         gain = float(np.sum(d) / max(np.sum(reference_sse), 1e-12))
@@ -127,17 +189,34 @@ class Judge:
                 for i in range(problem.n)
             ]
         )
-        t = paired_t(shares[acts_on]) if acts_on.sum() >= rules.heldout_min_recordings else math.nan
+        adds_level = FrictionLevel.id in candidate.effect_ids and FrictionLevel.id not in reference_ids
+        if adds_level:
+            acts_on[:] = True
+            bic_rule, t = self._friction_level_rules(candidate, d)
+        else:
+            bic_rule = candidate.delta_bic - reference_bic < rules.select_delta_bic
+            t = paired_t(shares[acts_on]) if acts_on.sum() >= rules.heldout_min_recordings else math.nan
         candidate.acting_gain = float(np.mean(shares[acts_on])) if acts_on.any() else math.nan
         candidate.report["heldout_gain"] = round(gain, 4)
         candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
         candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
         candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
-        return (
-            candidate.relevant
-            and candidate.delta_bic - reference_bic < rules.select_delta_bic
-            and t >= rules.heldout_min_t
-        )
+        candidate.passes_bic_rule = bool(bic_rule)
+        candidate.passes_heldout_rule = bool(t >= rules.heldout_min_t)
+        return candidate.relevant and candidate.passes_bic_rule and candidate.passes_heldout_rule
+
+    def _friction_level_rules(self, candidate: Candidate, heldout_removed: np.ndarray) -> tuple[bool, float]:
+        """The two rules for a friction level added to the reference, its shared-shift test (in
+        place of the BIC rule; recorded in the report as ``friction_level_shift``) and the paired
+        t of the effective held-out error removed from each recording, over every recording.
+
+        The held-out error a level removes lies in each recording's friction-factor row, whose
+        prior weighs the same in every recording; shares of each recording's whole error would
+        divide it by the data rows' error, which differs between recordings for reasons (length,
+        channels) that have nothing to do with the level."""
+        shift = friction_level_shift(self.problem, candidate.fit)
+        candidate.report["friction_level_shift"] = shift.as_dict()
+        return abs(shift.z) >= self.rules.friction_level_min_z, paired_t(heldout_removed)
 
     def best_single(self, singles: Sequence[Candidate]) -> Candidate | None:
         """The passing single with the lowest held-out error (None: none passes); marks each
@@ -161,7 +240,7 @@ class Judge:
             better = [
                 pair
                 for pair in with_single
-                if self.beats(pair, single.delta_bic, single.heldout.sse, single.heldout.residual)
+                if self.beats(pair, single.delta_bic, single.heldout.sse, single.heldout.residual, single.effect_ids)
                 and float(np.sum(pair.heldout.sse)) < float(np.sum(single.heldout.sse))
             ]
             if better:
@@ -177,19 +256,16 @@ class Judge:
     def _pair_as_good(self, single: Candidate, pair: Candidate) -> bool:
         """Whether ``pair`` (judged against ``single`` by :meth:`beats`, and not passing) explains
         the data as well as the single, by one of the two rules but not both: relevant, a held-out
-        error within ``indistinguishable_heldout`` of the single's or lower, and either a BIC lower
-        than the single's by ``select_delta_bic`` or a held-out t of ``heldout_min_t`` over the
-        recordings the second effect acts on."""
+        error within ``indistinguishable_heldout`` of the single's or lower, and either the BIC
+        rule against the single (a BIC lower by ``select_delta_bic``, or for an added friction
+        level its shared-shift test) or a held-out t of ``heldout_min_t`` over the recordings the
+        second effect acts on."""
         rules = self.rules
         single_sse = float(np.sum(single.heldout.sse))
-        t = pair.report.get("heldout_t")
         return (
             pair.relevant
             and float(np.sum(pair.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * single_sse
-            and (
-                pair.delta_bic - single.delta_bic < rules.select_delta_bic
-                or (t is not None and t >= rules.heldout_min_t)
-            )
+            and (pair.passes_bic_rule or pair.passes_heldout_rule)
         )
 
     def _indistinguishable(

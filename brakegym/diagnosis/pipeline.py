@@ -13,7 +13,9 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
    which they live (:mod:`.locate`).
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
 5. **Fit** the best ``top_singles`` effects in full from their best screened points (only those
-   whose screening beats the unmodified model), and the pairs of the best ``pairs_from``.
+   whose screening beats the unmodified model), and the pairs of the best ``pairs_from``; the
+   friction level too where its screened point shows a shift shared by the recordings' friction
+   factors (:func:`.judging.shared_friction_shift`), however it ranks.
 6. **Fallback as a screening source**: with no single passing the rules of :mod:`.judging` and a
    residual the data-driven description would call unexplained, each library effect whose
    signature the residual matches (:mod:`.signatures`) is fitted from the start the signature
@@ -49,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence
+from ..effects import EFFECTS, Evidence, FrictionLevel
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -57,7 +59,7 @@ from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
 from .inputs import chain_report, zero_corrected
-from .judging import Candidate, Judge
+from .judging import Candidate, Judge, shared_friction_shift
 from .locate import (
     NOISE_CHANNELS,
     ResidualTrace,
@@ -192,7 +194,7 @@ class Diagnoser:
         order = sorted(screened, key=lambda e: screened[e].chi2)
         promising = [e for e in order if screened[e].chi2 < judge.chi2_base - rules.screen_min_gain]
         singles = []
-        for effect_id in promising[: rules.top_singles]:
+        for effect_id in self._with_shared_shift(promising, rules.top_singles, screened):
             point = screened[effect_id]
             start = np.concatenate([point.theta, point.nuisance])
             fits = [problem.fit([effect_id], start, fixed=point.fixed, max_iterations=rules.fit_iterations)]
@@ -245,7 +247,7 @@ class Diagnoser:
             if screened[e].chi2 < single.chi2_eff - rules.screen_min_gain and frozenset((selected_id, e)) not in fitted
         ]
         new_pairs = []
-        for effect_id in promising[: rules.forward_pairs]:
+        for effect_id in self._with_shared_shift(promising, rules.forward_pairs, screened):
             point = screened[effect_id]
             ids = tuple(sorted((selected_id, effect_id), key=list(EFFECTS).index))
             fits = []
@@ -310,6 +312,23 @@ class Diagnoser:
             description = describe_unexplained(traces, shares) if described else None
             self._residual = BaselineResidual(traces, shares, over_noise, channels, description)
         return self._residual
+
+    def _with_shared_shift(self, promising: list[str], count: int, screened: dict[str, ScreenedPoint]) -> list[str]:
+        """The first ``count`` of the ``promising`` effects (best screened first), and the friction
+        level beyond them where its screened point shows a shift shared by the recordings'
+        friction factors (:func:`.judging.shared_friction_shift`). A level's chi^2 gain is its
+        factors' prior rows alone, about z^2, which any effect that fits some structure of the
+        data outranks (a rotating mass, a speed-sensor scale), so the ranking left it unfitted."""
+        chosen = promising[:count]
+        level = FrictionLevel.id
+        if count > 0 and level in promising[count:]:
+            point = screened[level]
+            n = self.problem.n
+            factors = point.nuisance[2 * n : 3 * n]
+            shift = shared_friction_shift(float(point.theta[0]), factors, self.problem.prior_sigma)
+            if abs(shift.z) >= self.rules.friction_level_min_z:
+                chosen.append(level)
+        return chosen
 
     def _locate(
         self, weighting: Weighting, baseline: FitResult, selected: Candidate | None, significant_anyway: bool

@@ -54,6 +54,12 @@ class DiagnosisRules:
     unconfirmed_min_gain: float = 0.10
     #: two passing candidates whose held-out errors are within this share may be indistinguishable
     indistinguishable_heldout: float = 0.10
+    #: in place of the BIC rule, a friction level added to a reference must lie this many standard
+    #: errors of the factors' mean off 1, a shift shared by the recordings' friction factors
+    #: (:func:`.judging.friction_level_shift`). Its evidence is
+    #: n factors, not the samples: the BIC's penalty of log(effective samples) per parameter and
+    #: its margin of 10 ask for a shift of 7-8 % on 8 recordings, however tightly they agree.
+    friction_level_min_z: float = 2.0
 
     # -- the verdict without an effect ----------------------------------------------------------
     #: a residual that explains at least this share of its variance along one state axis (eta^2)
