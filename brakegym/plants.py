@@ -141,20 +141,22 @@ def rail_conditioning(condition: cfg.RailCondition) -> RailConditioning:
 def rail_sections(line: cfg.Line) -> RailSections:
     """The creep-force law of each section of ``line``; an unknown rail condition names the line
     and the section."""
-    laws = []
-    for index, section in enumerate(line.sections):
-        try:
-            laws.append(polach_law(cfg.load("rail_conditions", section.rail_condition)))
-        except cfg.ConfigError as error:
-            raise cfg.ConfigError(f"line {line.name!r}, sections[{index}].rail_condition: {error}") from None
-    return RailSections(starts_m=tuple(section.start_m for section in line.sections), laws=tuple(laws))
+    laws = tuple(polach_law(condition) for condition in rail_conditions_of(line))
+    return RailSections(starts_m=tuple(section.start_m for section in line.sections), laws=laws)
 
 
 def rail_conditions_of(rail: cfg.RailCondition | cfg.Line) -> list[cfg.RailCondition]:
-    """The rail conditions of a rail: itself, or each section's of a line (in section order)."""
+    """The rail conditions of a rail: itself, or each section's of a line (in section order); an
+    unknown rail condition names the line and the section."""
     if isinstance(rail, cfg.RailCondition):
         return [rail]
-    return [cfg.load("rail_conditions", section.rail_condition) for section in rail.sections]
+    conditions = []
+    for index, section in enumerate(rail.sections):
+        try:
+            conditions.append(cfg.load("rail_conditions", section.rail_condition))
+        except cfg.ConfigError as error:
+            raise cfg.ConfigError(f"line {rail.name!r}, sections[{index}].rail_condition: {error}") from None
+    return conditions
 
 
 def rail_static_friction_relative_sigma(rail: cfg.RailCondition | cfg.Line) -> float:
