@@ -192,7 +192,7 @@ def test_command_writes_json_and_figure(tmp_path, capsys):
     [
         (["--vehicle", "tgv", "--load", "empty"], "known: emu_8axle"),
         (["--load", "half"], "known: ['empty', 'max', 'normal']"),
-        (["--load", "empty", "--condition", "icy"], "known: dry, low, wet"),
+        (["--load", "empty", "--condition", "icy"], "known: dry, low, low_conditioned, wet"),
         (["--load", "empty", "--line", "nowhere"], "nowhere"),
         (["--load", "empty", "--valves", "wheel"], "wheel"),
         (["--load", "empty", "--setup", "mcs-50"], "known: ds, mcs-100"),
