@@ -76,16 +76,21 @@ class WheelRailAdhesion:
             math.isfinite(f) and f > 0 for f in self.static_friction_factor
         ):
             raise ValueError(f"static_friction_factor {self.static_friction_factor}: every factor must be positive")
-        sections = len(self.law.laws) if isinstance(self.law, RailSections) else 1
-        if self.conditioning is not None and len(self.conditioning) != sections:
-            raise ValueError(f"{len(self.conditioning)} rail conditionings for {sections} sections: need one each")
+        if self.conditioning is not None and len(self.conditioning) != self.n_sections:
+            raise ValueError(
+                f"{len(self.conditioning)} rail conditionings for {self.n_sections} sections: need one each"
+            )
+
+    @property
+    def n_sections(self) -> int:
+        """Sections of the rail (1 on a rail in one condition)."""
+        return len(self.law.laws) if isinstance(self.law, RailSections) else 1
 
     def axle_conditioning(self, n_axles: int) -> np.ndarray:
         """Each section's factor on mu_0 under each axle (S, A): the rail's conditioning by the
         axles ahead, exactly 1 without."""
-        sections = len(self.law.laws) if isinstance(self.law, RailSections) else 1
         if self.conditioning is None:
-            return np.ones((sections, n_axles))
+            return np.ones((self.n_sections, n_axles))
         return np.array([conditioning.axle_factors(n_axles) for conditioning in self.conditioning])
 
     def law_at(self, position_m: np.ndarray, n_axles: int | None = None) -> PolachLaw:

@@ -282,6 +282,8 @@ class WheelSlideProtection(BrakeTask):
         self.features = BcuFeatures(n, axles, fleet.control_step_s, fleet.max_pressure_bar)
         self.measurement: BcuMeasurement | None = None
         self.peak_adhesion_table = self._peak_adhesion_table()
+        # Each axle's factor on the nominal mu_0 from the rail's conditioning (one section).
+        self.axle_conditioning = fleet.adhesion.axle_conditioning(axles)[0]
         self.ideal_braking_distance_m = np.full(n, np.nan)
         self.rail_friction_factor = np.ones(n)
 
@@ -452,15 +454,13 @@ class WheelSlideProtection(BrakeTask):
         vehicle = fleet.vehicle
         speeds, peaks = self.peak_adhesion_table
         wheelsets_kg = self.n_axles * fleet.adhesion.wheelset_inertia_kgm2 / vehicle.wheel_radius_m**2
-        # Each axle's factor on the nominal mu_0 from the rail's conditioning (one section).
-        conditioning = fleet.adhesion.axle_conditioning(self.n_axles)[0]
         for train in index:
             load = fleet.episodes.load_index[train]
             mass_kg = vehicle.mass_kg(fleet.vehicle_loads[load])
             speed = self.speed_at_demand_mps[train]
             braking = adhesion_limited_distance_m(
                 speed,
-                self.rail_friction_factor[train] * conditioning,
+                self.rail_friction_factor[train] * self.axle_conditioning,
                 speeds,
                 peaks[load],
                 mass_kg,
