@@ -225,6 +225,7 @@ def test_every_effect_has_its_public_parameters_and_a_no_effect_value():
         "running_resistance": ["A_N", "B_N_per_mps", "C_N_per_mps2"],
         "speed_sensor_scale": ["scale"],
         "temperature_sensor_lag": ["tau_s"],
+        "gradient_section": ["section_start_m", "section_length_m", "section_gradient_permil"],
     }
     assert {k: [p.name for p in cls.parameters] for k, cls in EFFECTS.items()} == expected
     nominal = _initial_brake_force_N([])

@@ -85,6 +85,38 @@ def _table(rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
+def _found_lines(report: dict) -> list[str]:
+    """What the data pointed the search at, as Markdown bullets: the step of the residual along
+    position, each friction level's shared shift, the fallback's signatures."""
+    lines = []
+    step = report.get("position_step")
+    if step is not None:
+        lines.append(
+            f"- Step of the residual deceleration along position (while braking): {step['start_m']:g} to "
+            f"{step['end_m']:g} m from the recordings' first samples, {step['decel_step_mps2']:g} m/s^2 "
+            f"(a gradient of {step['gradient_permil']:g} permil), {step['explained_share']:.1%} of the "
+            f"residual's variance, {step['recordings']} recordings on it."
+        )
+    for candidate in report["candidates"]:
+        shift = candidate.get("friction_level_shift")
+        if shift is not None:
+            lines.append(
+                f"- Friction level in {' + '.join(candidate['effects'])}: a shared shift of the recordings' "
+                f"friction factors to {shift['level']:g} (their scatter {shift['scatter']:g}, standard "
+                f"error {shift['standard_error']:g}, z = {shift['z']:g})."
+            )
+    fallback = report.get("fallback_screening")
+    if fallback is not None:
+        description = fallback["description"]
+        lines.append(
+            f'- Before the verdict "unexplained", the residual along {description["axis"]} '
+            f"({description['form']}) was matched against the library's signatures:"
+        )
+        for signature in fallback["signatures"] or [{"signature": "none matched", "effect": "-", "verdict": "-"}]:
+            lines.append(f"  - {signature['signature']} -> {signature['effect']}: {signature['verdict']}")
+    return lines
+
+
 def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -157,6 +189,9 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
         _table(candidate_rows),
         "",
     ]
+    found = _found_lines(report)
+    if found:
+        parts += ["## What the data pointed the search at", "", *found, ""]
     if chosen is not None:
         parts += [
             "## Residual RMS before and after",

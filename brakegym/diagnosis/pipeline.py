@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence, FrictionLevel
+from ..effects import EFFECTS, Evidence, FrictionLevel, GradientSection
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -70,6 +70,7 @@ from .locate import (
     segments,
 )
 from .noise import noise_model_entry
+from .position_steps import PositionStep, find_position_step
 from .report import build_report, candidate_entries
 from .rules import DiagnosisRules
 from .screening import ScreenedPoint, Screening, integer_neighbours
@@ -123,22 +124,31 @@ class Diagnoser:
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs
         self._residual: BaselineResidual | None = None
 
-    def _evidence(self, baseline: FitResult) -> Evidence:
+    def _evidence(self, baseline: FitResult, position_step: PositionStep | None) -> Evidence:
         decels = [r.channel(DECEL) for r in self.recordings if r.channel(DECEL) is not None]
         temperatures = [r.channel(DISC_TEMPERATURE) for r in self.recordings if r.channel(DISC_TEMPERATURE) is not None]
+        located = position_step is not None and position_step.explained_share >= self.rules.position_step_min_share
         return Evidence(
             peak_decel_mps2=float(max(np.nanpercentile(d, 99) for d in decels)) if decels else math.inf,
             peak_disc_C=float(max(np.nanmax(t) for t in temperatures)) if temperatures else math.inf,
             friction_factors=baseline.x[2 * self.problem.n :],
             nominal_resistance=self.recordings[0].vehicle.running_resistance,
+            run_distance_m=max(float(np.nanmax(r.states["true_position_m"])) for r in baseline.replays),
+            position_steps=(position_step.section_start(GradientSection.TRAIN_LENGTH_M),) if located else (),
         )
+
+    def unmodified_fit(self) -> FitResult:
+        """The unmodified model fitted to the recordings: each recording's nuisance alone."""
+        return self.problem.fit([], self.problem.gridded_start())
 
     def run(self) -> Diagnosis:
         problem, rules = self.problem, self.rules
-        baseline = problem.fit([], problem.gridded_start())
+        baseline = self.unmodified_fit()
         noise_rho = {c: m.rho for c, m in self.noise_models.items() if np.isfinite(m.rho)}
         weighting = Weighting(problem, baseline.residual, noise_rho)
-        evidence = self._evidence(baseline)
+        traces = self._baseline_residual(weighting, baseline).traces
+        position_step = find_position_step(traces, rules.position_step_bin_m, GradientSection.TRAIN_LENGTH_M)
+        evidence = self._evidence(baseline, position_step)
         judge = Judge(problem, weighting, rules, evidence, baseline)
         screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
         screened = screening.run()
@@ -172,6 +182,7 @@ class Diagnoser:
         )
         report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["fallback_screening"] = fallback.report_entry(verdict.selected) if fallback is not None else None
+        report["position_step"] = position_step.report_entry() if position_step is not None else None
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()

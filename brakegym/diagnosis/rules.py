@@ -80,6 +80,14 @@ class DiagnosisRules:
     #: costs a candidate's fit and its held-out prediction)
     fallback_max_fits: int = 2
 
+    # -- effects along the line ------------------------------------------------------------------
+    #: bins of position, m, in which a step of the residual along position is searched
+    #: (:mod:`brakegym.diagnosis.position_steps`); a fifth of a train length
+    position_step_bin_m: float = 10.0
+    #: a step along position is screened as a gradient section when it explains this share of the
+    #: braking residual deceleration's variance about each recording's mean
+    position_step_min_share: float = 0.05
+
     # -- screening ------------------------------------------------------------------------------
     #: grid points per parameter of a one-parameter effect, an even number since the middle of
     #: symmetric bounds (often the no-effect value) is no start; 3 per parameter for two, 2 for three

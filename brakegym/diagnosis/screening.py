@@ -39,8 +39,11 @@ class ScreenedPoint:
 
 def grid(effect_id: str, rules: DiagnosisRules) -> list[tuple[dict[str, float], np.ndarray]]:
     """Start points inside the bounds: (fixed integer parameters, free values). An effect with an
-    integer parameter is screened at each whole value from 1 (0 is no effect)."""
+    integer parameter is screened at each whole value from 1 (0 is no effect); one that is not
+    ``grid_screened`` at none (only at its screening points)."""
     cls = EFFECTS[effect_id]
+    if not cls.grid_screened:
+        return []
     integer = [s for s in cls.parameters if s.integer]
     if integer:
         spec = integer[0]

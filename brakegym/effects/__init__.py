@@ -21,6 +21,7 @@ can simulate several parameter sets in one batch).
 | ``running_resistance`` | ``A_N``, ``B_N_per_mps``, ``C_N_per_mps2`` | F_R = A + B v + C v^2 replaces the nominal |
 | ``speed_sensor_scale`` | ``scale`` | measured speed and odometry = scale x true |
 | ``temperature_sensor_lag`` | ``tau_s`` | first-order lag of the measured disc temperature |
+| ``gradient_section`` | ``section_start_m``, ``section_length_m``, ``section_gradient_permil`` | m g p/1000 on a part |
 
 An effect set is loadable from YAML (``configs/effects/<name>.yaml``, schema
 :class:`brakegym.config.EffectSet`) with :func:`load_effects`. Modules: :mod:`.base` (parameters,
@@ -40,7 +41,7 @@ from ..simulator import BatchConditions, Plant
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, SensorModel, Value
 from .friction import AdhesionLimit, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
-from .track import Gradient, RunningResistanceEffect
+from .track import Gradient, GradientSection, RunningResistanceEffect
 from .vehicle import BrakeUnitFailure, RotatingMass
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -56,6 +57,7 @@ EFFECTS: dict[str, type[Effect]] = {
         RunningResistanceEffect,
         SpeedSensorScale,
         TemperatureSensorLag,
+        GradientSection,
     )
 }
 
@@ -135,6 +137,7 @@ __all__ = [
     "Evidence",
     "FrictionLevel",
     "Gradient",
+    "GradientSection",
     "ParameterSpec",
     "RotatingMass",
     "RunningResistanceEffect",

@@ -93,6 +93,10 @@ class Evidence:
     friction_factors: np.ndarray  # each recording's friction factor fitted with the unmodified model
     nominal_resistance: cfg.RunningResistance  # the vehicle's running resistance and its scatter
     peak_friction_surface_C: float = float("inf")  # the hottest friction surface of a candidate's fitted replays
+    run_distance_m: float = float("inf")  # the longest distance a recording covers from its first sample
+    #: where the unmodified model's residual locates a force that acts on part of the line, as the
+    #: sections (start_m, length_m, gradient_permil) whose force would leave its steps
+    position_steps: tuple[tuple[float, float, float], ...] = ()
 
 
 @dataclass
@@ -152,6 +156,9 @@ class Effect:
     sensor: ClassVar[bool] = False  # acts on the measurement, not on the physics
     # Effects apply in ascending order; the adhesion limit must see every other friction factor.
     order: ClassVar[int] = 0
+    #: the diagnosis screens it on a grid inside its bounds; an effect that acts on part of the
+    #: line is screened only where the data locate it (:meth:`screening_points`)
+    grid_screened: ClassVar[bool] = True
     #: What would confirm or reject the effect where it acts on too few recordings to judge it held
     #: out: a template of ``{where}`` (those recordings) and the fitted parameters by name.
     confirming_measurement: ClassVar[str] = "more recordings in the conditions of {where}"

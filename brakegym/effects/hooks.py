@@ -49,6 +49,34 @@ class GradientProfileForce:
 
 
 @dataclass(frozen=True)
+class GradientSectionForce:
+    """The force of one section of gradient from ``start_m`` to ``end_m`` (per train, (B,)), level
+    track on either side: m g p / 1000 times the share of the train's length on the section. The
+    train's weight is spread evenly over ``train_length_m`` behind its reference point, so the force
+    ramps up over one train length as the train runs onto the section and down as it leaves: a
+    force continuous in the section's ends, which a fit can then move by finite differences (a
+    point train's force jumps between two time steps, and its derivative in the ends is zero or
+    infinite)."""
+
+    weight_N: np.ndarray  # (B,), m g
+    start_m: np.ndarray  # (B,)
+    end_m: np.ndarray  # (B,)
+    gradient_permil: np.ndarray  # (B,)
+    train_length_m: float
+
+    def grade_at(self, position_m: np.ndarray, train: int | slice = slice(None)) -> np.ndarray:
+        """Mean rise over run under trains ``train`` whose reference points are at ``position_m``
+        ((B,), or any shape for one train)."""
+        position = np.asarray(position_m, dtype=float)
+        start, end = self.start_m[train], self.end_m[train]
+        on_section = np.minimum(position, end) - np.maximum(position - self.train_length_m, start)
+        return self.gradient_permil[train] / 1000.0 * np.clip(on_section, 0.0, None) / self.train_length_m
+
+    def force_N(self, context: StageContext) -> np.ndarray:
+        return self.weight_N * self.grade_at(context.position_m)
+
+
+@dataclass(frozen=True)
 class ConstantFrictionFactor:
     factor: Value  # scalar, (B,) or (A, k, B)
     constant: ClassVar[bool] = True

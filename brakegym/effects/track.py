@@ -1,4 +1,5 @@
-"""Effects of the line: a gradient and a running resistance other than the nominal one."""
+"""Effects of the line: a gradient, a section of gradient on part of the line, and a running
+resistance other than the nominal one."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from .. import config as cfg
 from ..physics import RunningResistanceLaw
 from ..units import STANDARD_GRAVITY_MPS2
 from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
-from .hooks import ConstantForce
+from .hooks import ConstantForce, GradientSectionForce
 
 
 class Gradient(Effect):
@@ -46,6 +47,72 @@ class Gradient(Effect):
         grade = per_train(self["gradient_permil"], model.n_trains, "gradient_permil") / 1000.0
         model.extra_forces.append(ConstantForce(model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2 * grade))
         model.grade = model.grade + grade
+
+
+class GradientSection(Effect):
+    """A gradient on part of the line: level track, then ``section_gradient_permil`` from
+    ``section_start_m`` for ``section_length_m``, then level again, in metres travelled from each
+    recording's first sample (the recordings of a set start at the same place of the line, as a
+    recording's known gradient profile does, :mod:`brakegym.recordings.metadata`).
+
+    The force is the gradient's m g p / 1000 times the share of the train on the section, the
+    train's weight spread over ``TRAIN_LENGTH_M`` (:class:`~.hooks.GradientSectionForce`). The
+    accelerometer does not see it. The diagnosis screens it only where the residual along position
+    shows a step (:attr:`~brakegym.effects.base.Evidence.position_steps`): a grid over start, length and gradient would cost
+    a batch of simulations on every set for an effect that the residual locates.
+    """
+
+    id = "gradient_section"
+    parameters = (
+        ParameterSpec(
+            "section_start_m", "m", 0.0, 2500.0, 0.0, ((100.0, 400.0),), description="where the section begins"
+        ),
+        ParameterSpec("section_length_m", "m", 50.0, 2500.0, 0.0, ((250.0, 600.0),), description="how long it is"),
+        ParameterSpec(
+            "section_gradient_permil",
+            "permil",
+            -40.0,
+            40.0,
+            0.0,
+            ((-15.0, -4.0), (4.0, 15.0)),
+            description="rise over run x 1000 in the direction of travel",
+        ),
+    )
+    # ASSUMED: a two-car unit of the emu_8axle's eight axles is about 50 m long (the vehicle
+    # configs carry no length).
+    TRAIN_LENGTH_M = 50.0
+    grid_screened = False
+    separating_measurements = {
+        "gradient": "recordings that start at other places of the line (a section stays where it is on the line)",
+        "running_resistance": "an accelerometer (it does not see a slope, it does see running resistance)",
+    }
+
+    @classmethod
+    def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
+        """A section of at least ``Gradient.RELEVANT_PERMIL`` that begins or ends inside the
+        recordings by a train length: one that covers every recording from end to end is the
+        constant gradient, and the gradient effect says so."""
+        start, end = parameters["section_start_m"], parameters["section_start_m"] + parameters["section_length_m"]
+        inside = start >= cls.TRAIN_LENGTH_M or end <= evidence.run_distance_m - cls.TRAIN_LENGTH_M
+        covered = start < evidence.run_distance_m
+        return abs(parameters["section_gradient_permil"]) >= Gradient.RELEVANT_PERMIL and inside and covered
+
+    @classmethod
+    def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
+        return [np.array(step, dtype=float) for step in evidence.position_steps]
+
+    def apply(self, model: EffectedModel) -> None:
+        n = model.n_trains
+        start = per_train(self["section_start_m"], n, "section_start_m")
+        model.extra_forces.append(
+            GradientSectionForce(
+                model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2,
+                start,
+                start + per_train(self["section_length_m"], n, "section_length_m"),
+                per_train(self["section_gradient_permil"], n, "section_gradient_permil"),
+                self.TRAIN_LENGTH_M,
+            )
+        )
 
 
 class RunningResistanceEffect(Effect):

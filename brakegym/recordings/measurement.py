@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import EffectedModel
-from ..effects.hooks import GradientProfileForce
+from ..effects.hooks import GradientProfileForce, GradientSectionForce
 from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
 from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 
@@ -98,9 +98,11 @@ class MeasurementModel:
         self.speed_scale = float(np.broadcast_to(model.sensors.speed_scale, (model.n_trains,))[index])
         self.temperature_lag_s = float(np.broadcast_to(model.sensors.temperature_lag_s, (model.n_trains,))[index])
         self.grade = float(np.broadcast_to(model.grade, (model.n_trains,))[index])
-        # A gradient that changes along the line: its force is among the extra forces.
-        lines = [force for force in model.extra_forces if isinstance(force, GradientProfileForce)]
-        self.line_gradient = lines[0] if lines else None
+        # Gradients that change along the line (a known profile, a section): their forces are
+        # among the extra forces.
+        self.line_gradients = [
+            force for force in model.extra_forces if isinstance(force, GradientProfileForce | GradientSectionForce)
+        ]
         self.stop_time_s = float(grid.stop_time_s[index])
         self._speed = grid.speed_mps[:, index]
         self._position = grid.position_m[:, index]
@@ -155,8 +157,8 @@ class MeasurementModel:
         out = {SPEED: self.speed_scale * speed, POSITION: self.speed_scale * position}
         if self.decel_source == "accelerometer":
             grade = self.grade
-            if self.line_gradient is not None:
-                grade = grade + self.line_gradient.grade_at(position, self.index)
+            for line in self.line_gradients:
+                grade = grade + line.grade_at(position, self.index)
             out[DECEL] = decel - STANDARD_GRAVITY_MPS2 * grade
         elif self.decel_source == "speed":
             out[DECEL] = self.speed_scale * decel

@@ -61,7 +61,7 @@ import pandas as pd
 from .. import __version__
 from .. import config as cfg
 from ..applications import CommandSchedule
-from ..effects import EFFECTS, Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
+from ..effects import Effect, EffectedModel, RunningResistanceEffect, apply_effects, effect_class
 from ..physics import BrakeCylinder, RunningResistanceLaw
 from ..plants import brake_cylinder, train_plant, train_scatter
 from ..simulator import BatchConditions, CommandedPressure, Plant, Simulator
@@ -167,10 +167,26 @@ def resolve_effects(
     return effects, entries
 
 
+#: the effects ``--random-effects`` draws from: the library of brakegym 0.2, so that a seed keeps
+#: its set as the library grows (an effect added since is drawn on request, ``--effect``)
+RANDOM_EFFECT_IDS = (
+    "gradient",
+    "friction_level",
+    "wet_pads",
+    "adhesion_limit",
+    "thermal_fade",
+    "rotating_mass",
+    "brake_unit_failure",
+    "running_resistance",
+    "speed_sensor_scale",
+    "temperature_sensor_lag",
+)
+
+
 def random_requests(rng: np.random.Generator) -> list[EffectRequest]:
-    """Zero, one or two effects of the library, equally likely counts, distinct ids."""
+    """Zero, one or two effects of ``RANDOM_EFFECT_IDS``, equally likely counts, distinct ids."""
     count = int(rng.integers(MAX_EFFECTS + 1))
-    ids = list(EFFECTS)
+    ids = list(RANDOM_EFFECT_IDS)
     chosen = rng.choice(len(ids), size=count, replace=False)
     return [EffectRequest(ids[int(i)]) for i in sorted(chosen)]
 
