@@ -127,24 +127,6 @@ def synth_options(chain: str | None, form: str | None) -> dict[str, Any]:
     }
 
 
-def synthesize_set(
-    seed: int, free: bool, offset: bool, recordings: int, tmp: Path, chain: str | None, form: str | None
-) -> tuple[Path, Any]:
-    """Synthesize one set of a run into ``tmp``: its folder and the synthesis result (with the key)."""
-    # Named by the set seed: a rerun may hold the same index from several runs.
-    folder = tmp / f"set_{seed}"
-    result = synthesize(
-        folder,
-        recordings,
-        seed,
-        random_effects=not free,
-        base_offset=offset,
-        key_path=tmp / f"key_{seed}.json",
-        **synth_options(chain, form),
-    )
-    return folder, result
-
-
 def run_set(
     index: int,
     seed: int,
@@ -158,7 +140,17 @@ def run_set(
 ) -> dict[str, Any]:
     """Synthesize one set (through ``chain`` and ``form``), judge it blind by ``args.method``,
     and judge the verdict against the key."""
-    folder, result = synthesize_set(seed, free, offset, recordings, tmp, chain, form)
+    # Named by the set seed: a rerun may hold the same index from several runs.
+    folder = tmp / f"set_{seed}"
+    result = synthesize(
+        folder,
+        recordings,
+        seed,
+        random_effects=not free,
+        base_offset=offset,
+        key_path=tmp / f"key_{seed}.json",
+        **synth_options(chain, form),
+    )
     # Timed from here: the synthesis (with the reference integrator of a model form, longer than
     # a diagnosis) is not the method's.
     started = time.time()
