@@ -213,6 +213,7 @@ def run_set(
         # What a change to the selection rules can be judged on again without diagnosing anew.
         "chi2_eff_unmodified": report["chi2_eff_unmodified"],
         "screening": report["screening"],
+        "position_step": report.get("position_step"),
         "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],
     }
 
