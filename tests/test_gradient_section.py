@@ -14,7 +14,7 @@ import pytest
 from brakegym import config as cfg
 from brakegym.diagnosis import diagnose
 from brakegym.diagnosis.locate import residual_trace
-from brakegym.diagnosis.markdown import write_report
+from brakegym.diagnosis.markdown import found_lines, write_report
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.position_steps import find_position_step
 from brakegym.diagnosis.rules import DiagnosisRules
@@ -208,3 +208,40 @@ def test_the_diagnosis_names_a_section_that_begins_part_way_along_the_line(secti
     markdown = write_report(diagnosis, tmp_path / "report", "section").read_text()
     start = report["position_step"]["start_m"]
     assert f"Step of the residual deceleration along position (while braking): {start:g} to" in markdown
+
+
+def test_the_markdown_report_lists_what_pointed_the_search():
+    """The step along position, each friction level's shared shift and the fallback's tries, from
+    the report's keys as ``diagnose`` writes them."""
+    report = {
+        "position_step": {
+            "start_m": 310.0,
+            "end_m": 720.0,
+            "decel_step_mps2": 0.061,
+            "gradient_permil": 6.217,
+            "explained_share": 0.4327,
+            "recordings": 8,
+        },
+        "candidates": [
+            {"effects": ["gradient"]},
+            {
+                "effects": ["friction_level"],
+                "friction_level_shift": {"level": 1.05, "scatter": 0.03, "standard_error": 0.011, "z": 4.6},
+            },
+        ],
+        "fallback_screening": {
+            "description": {"axis": "speed", "form": "quadratic", "explained_share": 0.4},
+            "signatures": [
+                {"signature": "force_quadratic_in_speed", "effect": "running_resistance", "verdict": "selected"}
+            ],
+        },
+    }
+    lines = found_lines(report)
+    assert lines[0].startswith("- Step of the residual deceleration along position (while braking): 310 to 720 m")
+    assert "43.3% of the residual's variance, 8 recordings on it" in lines[0]
+    assert lines[1] == (
+        "- Friction level in friction_level: a shared shift of the recordings' friction factors to 1.05 "
+        "(their scatter 0.03, standard error 0.011, z = 4.6)."
+    )
+    assert lines[3] == "  - force_quadratic_in_speed -> running_resistance: selected"
+    assert found_lines({"candidates": [], "position_step": None, "fallback_screening": None}) == []

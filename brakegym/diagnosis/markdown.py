@@ -85,7 +85,7 @@ def _table(rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def _found_lines(report: dict) -> list[str]:
+def found_lines(report: dict) -> list[str]:
     """What the data pointed the search at, as Markdown bullets: the step of the residual along
     position, each friction level's shared shift, the fallback's signatures."""
     lines = []
@@ -189,7 +189,7 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
         _table(candidate_rows),
         "",
     ]
-    found = _found_lines(report)
+    found = found_lines(report)
     if found:
         parts += ["## What the data pointed the search at", "", *found, ""]
     if chosen is not None:

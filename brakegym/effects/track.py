@@ -57,9 +57,10 @@ class GradientSection(Effect):
 
     The force is the gradient's m g p / 1000 times the share of the train on the section, the
     train's weight spread over ``TRAIN_LENGTH_M`` (:class:`~.hooks.GradientSectionForce`). The
-    accelerometer does not see it. The diagnosis screens it only where the residual along position
-    shows a step (:attr:`~brakegym.effects.base.Evidence.position_steps`): a grid over start, length and gradient would cost
-    a batch of simulations on every set for an effect that the residual locates.
+    accelerometer does not see it. The diagnosis screens it only where the residual along
+    position shows a step (:attr:`~brakegym.effects.base.Evidence.position_steps`): a grid over
+    start, length and gradient would cost a batch of simulations on every set for an effect that
+    the residual locates.
     """
 
     id = "gradient_section"
