@@ -214,6 +214,7 @@ def run_set(
         "chi2_eff_unmodified": report["chi2_eff_unmodified"],
         "screening": report["screening"],
         "position_step": report.get("position_step"),
+        "fallback_screening": report.get("fallback_screening"),
         "candidates": [{key: c.get(key) for key in CANDIDATE_KEYS} for c in report["candidates"]],
     }
 
