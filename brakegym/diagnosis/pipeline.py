@@ -141,11 +141,43 @@ class Diagnoser:
         """The unmodified model fitted to the recordings: each recording's nuisance alone."""
         return self.problem.fit([], self.problem.gridded_start())
 
+    def _weighting(self, baseline: FitResult) -> Weighting:
+        noise_rho = {c: m.rho for c, m in self.noise_models.items() if np.isfinite(m.rho)}
+        return Weighting(self.problem, baseline.residual, noise_rho)
+
+    def fit_effects(
+        self, effect_ids: Sequence[str], start: dict[str, float], fixed: dict[str, float] | None = None
+    ) -> Candidate:
+        """The named effects fitted without any selection, from ``start`` (a value for each of
+        their continuous parameters, by name) with each recording's nuisance from the unmodified
+        model's fit; integer parameters are held at ``fixed``. The candidate carries the report
+        entry of a selected model (parameters, the 95 % intervals with the bootstrap's, residuals,
+        held-out figures), for a model the user knows or wants to test, and for measuring the
+        intervals' coverage where the model is right (``benchmarks/bench_coverage.py``)."""
+        unknown = sorted(set(effect_ids) - set(EFFECTS))
+        if unknown:
+            raise ValueError(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
+        ids = tuple(sorted(effect_ids, key=list(EFFECTS).index))
+        problem, rules, fixed = self.problem, self.rules, dict(fixed or {})
+        free = problem.free_parameters(list(ids), fixed)
+        missing = [parameter.name for parameter in free if parameter.name not in start] + [
+            spec.name for eid in ids for spec in EFFECTS[eid].parameters if spec.integer and spec.name not in fixed
+        ]
+        if missing:
+            raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
+        baseline = self.unmodified_fit()
+        weighting = self._weighting(baseline)
+        judge = Judge(problem, weighting, rules, self._evidence(baseline, None), baseline)
+        x0 = np.concatenate([[start[parameter.name] for parameter in free], baseline.x[len(baseline.free) :]])
+        candidate = judge.candidate(ids, problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations))
+        candidate_entries(problem, weighting, baseline, [candidate])
+        add_bootstrap_intervals(problem, candidate, self.noise_models, rules)
+        return candidate
+
     def run(self) -> Diagnosis:
         problem, rules = self.problem, self.rules
         baseline = self.unmodified_fit()
-        noise_rho = {c: m.rho for c, m in self.noise_models.items() if np.isfinite(m.rho)}
-        weighting = Weighting(problem, baseline.residual, noise_rho)
+        weighting = self._weighting(baseline)
         traces = self._baseline_residual(weighting, baseline).traces
         position_step = find_position_step(traces, rules.position_step_bin_m, GradientSection.TRAIN_LENGTH_M)
         evidence = self._evidence(baseline, position_step)

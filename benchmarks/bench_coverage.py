@@ -1,0 +1,194 @@
+"""Coverage of the diagnosis's 95 % intervals where the model is right (not a test).
+
+For each effect of ``--random-effects``' library (or those given with ``--effect``) and each of
+``--sets-per-effect`` sets: ``brakegym synth`` writes a set with that effect alone, its size drawn
+within the effect's synth ranges (clean 10 Hz recordings, or through ``--measurement-chain``);
+the effect is then fitted as the diagnosis fits a selected model
+(:meth:`brakegym.diagnosis.Diagnoser.fit_effects`: every recording's nuisance, the Gauss-Newton /
+jackknife interval, the parametric bootstrap, their hull as ``ci95``), and each parameter's
+interval is checked against the key's value.
+
+What it measures is the intervals, not the search: the fit starts at the key's values (integer
+parameters are held there), so it ends in the truth's valley; whether the diagnosis finds that
+valley and selects the effect is ``bench_diagnosis.py``'s question. A set whose effect moves no
+sample by a noise sigma (``expressed`` false in the key: a fade onset above every disc temperature
+reached) has nothing to measure and is counted apart. Every set's scatter between applications is
+drawn as ``synth`` draws it, so the truth differs from the fitted model by that scatter as a real
+fleet's stops do.
+
+Printed per effect and parameter: the sets, how many intervals hold the truth (the reported
+``ci95``, and its two parts), with the Clopper-Pearson 95 % interval of that rate, and the median
+relative error; per effect, the sets where every parameter's interval holds it.
+
+Usage: ``python benchmarks/bench_coverage.py --sets-per-effect 4 --seed 1 --json cov1.json``.
+Runs with different seeds can go on side by side (one per core) and be summarized together:
+``python benchmarks/bench_coverage.py --summarize cov1.json cov2.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from brakegym.diagnosis import Diagnoser
+from brakegym.effects import EFFECTS
+from brakegym.recordings.chain import load_measurement_chain
+from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, synthesize
+
+DEFAULT_RECORDINGS = 8
+# The interval kinds a row keeps: the reported one and its two parts.
+INTERVALS = ("ci95", "ci95_gauss_newton_jackknife", "ci95_bootstrap")
+
+
+def set_seed(seed: int, index: int, effect_index: int) -> int:
+    """The synth seed of the ``index``-th set of the effect at ``effect_index`` in a run of ``seed``."""
+    return 100_000 * seed + 100 * index + effect_index
+
+
+def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -> dict[str, Any]:
+    """One set: synthesized with ``effect_id`` alone, the effect fitted from the key's values."""
+    with tempfile.TemporaryDirectory() as tmp:
+        result = synthesize(
+            Path(tmp) / "set",
+            recordings,
+            seed,
+            effects=[EffectRequest(effect_id)],
+            key_path=Path(tmp) / "key.json",
+            measurement_chain=load_measurement_chain(chain) if chain else None,
+        )
+        (entry,) = result.key["effects"]
+        truth = entry["parameters"]
+        row: dict[str, Any] = {
+            "effect": effect_id,
+            "seed": seed,
+            "recordings": recordings,
+            "measurement_chain": chain,
+            "truth": truth,
+            "expressed": entry["imprint"]["expressed"],
+        }
+        if not row["expressed"]:
+            return row
+        integer = {spec.name for spec in EFFECTS[effect_id].parameters if spec.integer}
+        started = time.time()
+        candidate = Diagnoser(result.recordings).fit_effects(
+            [effect_id],
+            {k: v for k, v in truth.items() if k not in integer},
+            {k: v for k, v in truth.items() if k in integer},
+        )
+        row["seconds"] = round(time.time() - started, 1)
+    report = candidate.report
+    row["fitted"] = report["parameters"]
+    for kind in INTERVALS:
+        row[kind] = {k: v for k, v in report.get(kind, {}).items() if k not in integer}
+    return row
+
+
+def clopper_pearson(hits: int, n: int) -> tuple[float, float]:
+    """The exact 95 % interval of a rate of ``hits`` in ``n``."""
+    low = 0.0 if hits == 0 else float(stats.beta.ppf(0.025, hits, n - hits + 1))
+    high = 1.0 if hits == n else float(stats.beta.ppf(0.975, hits + 1, n - hits))
+    return low, high
+
+
+def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per effect and parameter: sets, intervals holding the truth (each kind), median error."""
+    per_parameter: dict[str, dict[str, Any]] = defaultdict(
+        lambda: {"sets": 0, "errors": [], **{k: 0 for k in INTERVALS}}
+    )
+    per_effect: dict[str, dict[str, int]] = defaultdict(lambda: {"sets": 0, "all_covered": 0, "not_expressed": 0})
+    for row in rows:
+        effect = per_effect[row["effect"]]
+        if not row["expressed"]:
+            effect["not_expressed"] += 1
+            continue
+        effect["sets"] += 1
+        reported = row["ci95"]
+        for name, truth in row["truth"].items():
+            if name not in reported:  # an integer parameter, held at the truth
+                continue
+            entry = per_parameter[f"{row['effect']}.{name}"]
+            entry["sets"] += 1
+            entry["errors"].append(abs(row["fitted"][name] - truth) / max(abs(truth), 1e-9))
+            for kind in INTERVALS:
+                low, high = row[kind].get(name, (np.nan, np.nan))
+                entry[kind] += bool(low <= truth <= high)
+        effect["all_covered"] += all(low <= row["truth"][name] <= high for name, (low, high) in reported.items())
+    parameters = {}
+    for name, entry in sorted(per_parameter.items()):
+        n = entry["sets"]
+        parameters[name] = {
+            "sets": n,
+            **{f"covered_{kind}": entry[kind] for kind in INTERVALS},
+            "coverage_ci95_clopper_pearson": [round(v, 3) for v in clopper_pearson(entry["ci95"], n)],
+            "median_relative_error": float(np.median(entry["errors"])),
+        }
+    return {"parameters": parameters, "effects": dict(sorted(per_effect.items()))}
+
+
+def print_summary(summary: dict[str, Any]) -> None:
+    print(
+        f"{'parameter':40s} {'sets':>4s} {'ci95':>9s} {'its 95 % CI':>13s} {'GN/jackknife':>12s} "
+        f"{'bootstrap':>9s} {'median error':>12s}"
+    )
+    for name, entry in summary["parameters"].items():
+        n = entry["sets"]
+        low, high = entry["coverage_ci95_clopper_pearson"]
+        print(
+            f"{name:40s} {n:4d} {entry['covered_ci95']:4d}/{n:<4d} {100 * low:5.0f}-{100 * high:3.0f} % "
+            f"{entry['covered_ci95_gauss_newton_jackknife']:7d}/{n:<4d} {entry['covered_ci95_bootstrap']:4d}/{n:<4d} "
+            f"{100 * entry['median_relative_error']:11.1f} %"
+        )
+    total = sum(e["sets"] for e in summary["effects"].values())
+    covered = sum(e["all_covered"] for e in summary["effects"].values())
+    print("\nper effect, sets where every parameter's ci95 holds the truth:")
+    for effect, entry in summary["effects"].items():
+        skipped = f" ({entry['not_expressed']} not expressed)" if entry["not_expressed"] else ""
+        print(f"  {effect:26s} {entry['all_covered']:3d}/{entry['sets']:<3d}{skipped}")
+    print(f"  {'all':26s} {covered:3d}/{total:<3d}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--summarize", nargs="+", metavar="ROWS.json", help="summarize earlier runs' rows")
+    parser.add_argument("--sets-per-effect", type=int, default=4)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
+    parser.add_argument("--effect", action="append", help="an effect id (repeatable; default: synth's random library)")
+    parser.add_argument("--measurement-chain", help="a measurement chain of configs/chains (default: clean 10 Hz)")
+    parser.add_argument("--json", help="write every set's row (after each set)")
+    parser.add_argument("--summary-json", metavar="FILE", help="write the summary's numbers as JSON")
+    args = parser.parse_args()
+    if args.summarize:
+        rows = [row for path in args.summarize for row in json.loads(Path(path).read_text())]
+    else:
+        effects = args.effect or list(RANDOM_EFFECT_IDS)
+        unknown = sorted(set(effects) - set(EFFECTS))
+        if unknown:
+            parser.error(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
+        rows = []
+        for index in range(args.sets_per_effect):
+            for effect_id in effects:
+                seed = set_seed(args.seed, index, list(EFFECTS).index(effect_id))
+                row = measure_set(effect_id, seed, args.recordings, args.measurement_chain)
+                rows.append(row)
+                shown = {k: row.get(k) for k in ("truth", "fitted", "ci95")}
+                print(f"{effect_id:24s} seed {seed}: {json.dumps(shown)}", flush=True)
+                if args.json:
+                    Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+    summary = summarize(rows)
+    print()
+    print_summary(summary)
+    if args.summary_json:
+        Path(args.summary_json).write_text(json.dumps(summary, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
