@@ -8,9 +8,9 @@ the effect is then fitted as the diagnosis fits a selected model
 jackknife interval, the parametric bootstrap, their hull as ``ci95``), and each parameter's
 interval is checked against the key's value.
 
-What it measures is the intervals, not the search: the fit starts at the key's values (integer
-parameters are held there), so it ends in the truth's valley; whether the diagnosis finds that
-valley and selects the effect is ``bench_diagnosis.py``'s question. A set whose effect moves no
+What it measures is the intervals, not the selection: the fit starts where the diagnosis starts
+it, at the effect's best screened point, with an integer parameter (failed units) held at the
+key's value; whether the diagnosis selects the effect is ``bench_diagnosis.py``'s question. A set whose effect moves no
 sample by a noise sigma (``expressed`` false in the key: a fade onset above every disc temperature
 reached) has nothing to measure and is counted apart. Every set's scatter between applications is
 drawn as ``synth`` draws it, so the truth differs from the fitted model by that scatter as a real
@@ -79,9 +79,7 @@ def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -
         integer = {spec.name for spec in EFFECTS[effect_id].parameters if spec.integer}
         started = time.time()
         candidate = Diagnoser(result.recordings).fit_effects(
-            [effect_id],
-            {k: v for k, v in truth.items() if k not in integer},
-            {k: v for k, v in truth.items() if k in integer},
+            [effect_id], fixed={k: v for k, v in truth.items() if k in integer}
         )
         row["seconds"] = round(time.time() - started, 1)
     report = candidate.report

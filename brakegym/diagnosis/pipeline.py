@@ -146,30 +146,54 @@ class Diagnoser:
         return Weighting(self.problem, baseline.residual, noise_rho)
 
     def fit_effects(
-        self, effect_ids: Sequence[str], start: dict[str, float], fixed: dict[str, float] | None = None
+        self,
+        effect_ids: Sequence[str],
+        start: dict[str, float] | None = None,
+        fixed: dict[str, float] | None = None,
     ) -> Candidate:
-        """The named effects fitted without any selection, from ``start`` (a value for each of
-        their continuous parameters, by name) with each recording's nuisance from the unmodified
-        model's fit; integer parameters are held at ``fixed``. The candidate carries the report
-        entry of a selected model (parameters, the 95 % intervals with the bootstrap's, residuals,
-        held-out figures), for a model the user knows or wants to test, and for measuring the
-        intervals' coverage where the model is right (``benchmarks/bench_coverage.py``)."""
+        """The named effects fitted without any selection: a model the user knows, or one whose
+        intervals are measured where it is right (``benchmarks/bench_coverage.py``). Integer
+        parameters are held at ``fixed``. The fit starts at ``start`` (a value for each
+        continuous parameter, by name) with each recording's nuisance from the unmodified model's
+        fit, or without ``start`` where the diagnosis starts it: at each effect's best screened
+        point (with one effect, its nuisance too; an integer parameter not in ``fixed`` takes its
+        screened value). The candidate carries the report entry of a selected model: parameters,
+        the 95 % intervals with the bootstrap's, residuals, held-out figures."""
         unknown = sorted(set(effect_ids) - set(EFFECTS))
         if unknown:
             raise ValueError(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
         ids = tuple(sorted(effect_ids, key=list(EFFECTS).index))
         problem, rules, fixed = self.problem, self.rules, dict(fixed or {})
-        free = problem.free_parameters(list(ids), fixed)
-        missing = [parameter.name for parameter in free if parameter.name not in start] + [
-            spec.name for eid in ids for spec in EFFECTS[eid].parameters if spec.integer and spec.name not in fixed
-        ]
-        if missing:
-            raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
+        if start is not None:
+            missing = [p.name for p in problem.free_parameters(list(ids), fixed) if p.name not in start] + [
+                spec.name for eid in ids for spec in EFFECTS[eid].parameters if spec.integer and spec.name not in fixed
+            ]
+            if missing:
+                raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
-        judge = Judge(problem, weighting, rules, self._evidence(baseline, None), baseline)
-        x0 = np.concatenate([[start[parameter.name] for parameter in free], baseline.x[len(baseline.free) :]])
-        candidate = judge.candidate(ids, problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations))
+        evidence = self._evidence(baseline, None)
+        nuisance = baseline.x[len(baseline.free) :]
+        if start is None:
+            screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
+            open_ids = [e for e in ids if any(spec.name not in fixed for spec in EFFECTS[e].parameters)]
+            screened = screening.run(open_ids, held=fixed)
+            unscreened = sorted(set(open_ids) - set(screened))
+            if unscreened:
+                raise ValueError(
+                    f"effect(s) {unscreened} have no screening point on these recordings; give start values"
+                )
+            start = {}
+            for effect_id in open_ids:
+                point = screened[effect_id]
+                fixed.update(point.fixed)
+                start.update(zip(_free_names(problem, effect_id, point.fixed), point.theta))
+            if len(open_ids) == 1:
+                nuisance = screened[open_ids[0]].nuisance
+        free = problem.free_parameters(list(ids), fixed)
+        x0 = np.concatenate([[start[parameter.name] for parameter in free], nuisance])
+        fit = problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations)
+        candidate = Judge(problem, weighting, rules, evidence, baseline).candidate(ids, fit)
         candidate_entries(problem, weighting, baseline, [candidate])
         add_bootstrap_intervals(problem, candidate, self.noise_models, rules)
         return candidate

@@ -17,6 +17,7 @@ residual hides in the unmodified model's residual shows there.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,16 +124,24 @@ class Screening:
         )
         return np.array([self.weighting.chi2(residual) for residual in projected]), points[:, len(free) :]
 
-    def run(self) -> dict[str, ScreenedPoint]:
-        """Every effect's best point (but the given ones), refined; in the library's order."""
+    def run(
+        self, effect_ids: Sequence[str] | None = None, held: Mapping[str, float] | None = None
+    ) -> dict[str, ScreenedPoint]:
+        """Every effect's best point (but the given ones), refined; in the library's order.
+        ``effect_ids`` screens those alone; ``held`` keeps an integer parameter at its value (its
+        other grid points are left out)."""
         best: dict[str, ScreenedPoint] = {}
         evidence = self.evidence
+        held = dict(held or {})
         for effect_id in EFFECTS:
-            if effect_id in self.given_ids:
+            if effect_id in self.given_ids or (effect_ids is not None and effect_id not in effect_ids):
                 continue
             by_fixed: dict[tuple, list[np.ndarray]] = {}
             for fixed, theta in grid(effect_id, self.rules):
-                by_fixed.setdefault(tuple(sorted(fixed.items())), []).append(theta)
+                key = tuple(sorted((name, held.get(name, value)) for name, value in fixed.items()))
+                if key in by_fixed and not theta.size:  # every whole value moved onto the held one
+                    continue
+                by_fixed.setdefault(key, []).append(theta)
             extra = EFFECTS[effect_id].screening_points(evidence)
             if extra:
                 by_fixed.setdefault((), []).extend(extra)

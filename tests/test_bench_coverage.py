@@ -1,0 +1,74 @@
+"""The coverage benchmark's bookkeeping (``benchmarks/bench_coverage.py``) on hand-built rows:
+each interval kind counted per parameter, an effect not expressed in the data counted apart, the
+per-effect count of sets where every interval holds the truth, and the exact binomial interval of
+a coverage. No fit runs here."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_coverage.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_coverage", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_coverage"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def row(effect, truth, fitted, ci95, gauss_newton_jackknife=None, bootstrap=None, expressed=True):
+    out = {"effect": effect, "seed": 0, "truth": truth, "expressed": expressed}
+    if expressed:
+        out.update(
+            fitted=fitted,
+            ci95=ci95,
+            ci95_gauss_newton_jackknife=gauss_newton_jackknife or ci95,
+            ci95_bootstrap=bootstrap or {},
+        )
+    return out
+
+
+def test_coverage_is_counted_per_parameter_and_interval_kind(bench):
+    rows = [
+        row(
+            "thermal_fade",
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": 210.0, "loss_per_100K": 0.12},
+            {"onset_C": [190.0, 230.0], "loss_per_100K": [0.11, 0.2]},
+            bootstrap={"onset_C": [205.0, 215.0], "loss_per_100K": [0.05, 0.15]},
+        ),
+        row(
+            "thermal_fade",
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": [190.0, 210.0], "loss_per_100K": [0.05, 0.15]},
+        ),
+        row("thermal_fade", {"onset_C": 400.0, "loss_per_100K": 0.1}, None, None, expressed=False),
+        # An integer parameter is held at the truth and has no interval of its own.
+        row("brake_unit_failure", {"failed_units": 2.0}, {"failed_units": 2.0}, {}),
+    ]
+    summary = bench.summarize(rows)
+    onset, loss = summary["parameters"]["thermal_fade.onset_C"], summary["parameters"]["thermal_fade.loss_per_100K"]
+    assert onset["sets"] == 2 and onset["covered_ci95"] == 2 and onset["covered_ci95_bootstrap"] == 0
+    assert loss["covered_ci95"] == 1 and loss["covered_ci95_bootstrap"] == 1
+    assert loss["median_relative_error"] == pytest.approx(0.1)
+    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "not_expressed": 1}
+    assert "brake_unit_failure.failed_units" not in summary["parameters"]
+    assert summary["effects"]["brake_unit_failure"] == {"sets": 1, "all_covered": 1, "not_expressed": 0}
+
+
+def test_the_exact_binomial_interval_of_a_coverage(bench):
+    # Clopper-Pearson, 95 %: 9 of 10 gives 0.555-0.997; none or all reach the bound.
+    low, high = bench.clopper_pearson(9, 10)
+    assert low == pytest.approx(0.5550, abs=1e-4) and high == pytest.approx(0.9975, abs=1e-4)
+    assert bench.clopper_pearson(0, 5)[0] == 0.0 and bench.clopper_pearson(5, 5)[1] == 1.0
+
+
+def test_the_seeds_of_a_run_are_distinct(bench):
+    seeds = {bench.set_seed(seed, index, effect) for seed in (1, 2) for index in range(20) for effect in range(12)}
+    assert len(seeds) == 2 * 20 * 12

@@ -1,0 +1,53 @@
+"""``Diagnoser.fit_effects``: a named model fitted without any selection, reported as a selected
+model is (parameters, the Gauss-Newton/jackknife interval, the bootstrap's, their hull).
+
+The thresholds were fixed before the test first ran: started at its screened point or at half the
+true gradient, the fit lands within 15 % of it, and the reported interval holds it and both intervals it is made of.
+"""
+
+import pytest
+
+from brakegym.diagnosis import Diagnoser
+from brakegym.recordings.synth import EffectRequest, synthesize
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+GRADIENT_PERMIL = 6.0
+
+
+@pytest.fixture(scope="module")
+def diagnoser(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fit_effects") / "set"
+    recordings = synthesize(
+        folder, 5, seed=3, effects=[EffectRequest("gradient", {"gradient_permil": GRADIENT_PERMIL})]
+    ).recordings
+    return Diagnoser(recordings)
+
+
+@pytest.mark.parametrize("start", [None, {"gradient_permil": GRADIENT_PERMIL / 2.0}], ids=["screened", "given"])
+def test_a_named_gradient_is_fitted_with_the_intervals_of_a_selected_model(diagnoser, start):
+    candidate = diagnoser.fit_effects(["gradient"], start)
+    report = candidate.report
+    assert candidate.effect_ids == ("gradient",)
+    fitted = report["parameters"]["gradient_permil"]
+    assert abs(fitted - GRADIENT_PERMIL) <= 0.15 * GRADIENT_PERMIL, fitted
+    low, high = report["ci95"]["gradient_permil"]
+    assert low <= GRADIENT_PERMIL <= high, (low, high)
+    for part in ("ci95_gauss_newton_jackknife", "ci95_bootstrap"):
+        part_low, part_high = report[part]["gradient_permil"]
+        assert low <= part_low and part_high <= high, (part, report[part], report["ci95"])
+    assert report["bootstrap_replicates"] == diagnoser.rules.bootstrap_replicates
+    assert report["rms_after"]["speed_mps"] < report["rms_before"]["speed_mps"]
+
+
+def test_an_unknown_effect_is_refused_by_name(diagnoser):
+    with pytest.raises(ValueError, match="unknown effect.*'gradiant'"):
+        diagnoser.fit_effects(["gradiant"], {})
+
+
+def test_a_parameter_without_a_value_is_refused_by_name(diagnoser):
+    with pytest.raises(ValueError, match="onset_C"):
+        diagnoser.fit_effects(["thermal_fade"], {"loss_per_100K": 0.1})
+    # An integer parameter is held, so its value goes in ``fixed``.
+    with pytest.raises(ValueError, match="failed_units"):
+        diagnoser.fit_effects(["brake_unit_failure"], {})
