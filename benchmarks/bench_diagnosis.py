@@ -73,6 +73,7 @@ CANDIDATE_KEYS = (
     "effects",
     "parameters",
     "delta_bic",
+    "mismatch_explained_share",
     "relevant_size",
     "heldout_gain",
     "heldout_t",

@@ -25,15 +25,9 @@ GRADIENT_PERMIL = 6.0
 REPLICATES = 8
 
 
-@pytest.fixture(scope="module")
-def gradient_fit(tmp_path_factory):
+def _gradient_fit(folder, seed):
     """A fitted gradient on 5 recordings with a 6 permil gradient, as the diagnosis fits it."""
-    folder = synthesize(
-        tmp_path_factory.mktemp("bootstrap") / "set",
-        5,
-        seed=3,
-        effects=[EffectRequest("gradient", {"gradient_permil": GRADIENT_PERMIL})],
-    ).folder
+    synthesize(folder, 5, seed=seed, effects=[EffectRequest("gradient", {"gradient_permil": GRADIENT_PERMIL})])
     recordings = read_dataset(folder).recordings
     rules = DiagnosisRules()
     noise_models = estimate_noise_models(recordings, rules.noise_window_s)
@@ -41,6 +35,20 @@ def gradient_fit(tmp_path_factory):
     problem = FitProblem([zero_corrected(r) for r in recordings], noise)
     start = np.concatenate([[GRADIENT_PERMIL / 2.0], problem.gridded_start()])
     fit = problem.fit(["gradient"], start, max_iterations=rules.fit_iterations)
+    return problem, fit, noise_models, rules
+
+
+@pytest.fixture(scope="module")
+def gradient_fit(tmp_path_factory):
+    return _gradient_fit(tmp_path_factory.mktemp("bootstrap") / "set", seed=3)
+
+
+@pytest.fixture(scope="module")
+def accelerometer_gradient_fit(tmp_path_factory):
+    """The same on a set whose deceleration channel is an accelerometer (seed 3's is the speed's
+    derivative, which carries no bias)."""
+    problem, fit, noise_models, rules = _gradient_fit(tmp_path_factory.mktemp("accelerometer") / "set", seed=4)
+    assert all(r.metadata.decel_source == "accelerometer" for r in problem.recordings)
     return problem, fit, noise_models, rules
 
 
@@ -72,6 +80,25 @@ def test_the_bootstrap_interval_holds_a_known_gradient_and_is_narrower_than_it(g
     # The replicates are real refits: they scatter, and around the fitted value.
     assert np.std(result.estimates[:, 0]) > 0.0
     assert abs(np.mean(result.estimates[:, 0]) - fit.x[0]) < GRADIENT_PERMIL / 2.0
+
+
+def test_an_accelerometer_bias_widens_what_the_replicates_spread(accelerometer_gradient_fit, gradient_fit):
+    # A bias of 0.05 m/s^2 between recordings reads as 5 permil of gradient on each recording's
+    # accelerometer. The fitted gradient rests mostly on the speed channel (the coasting, the
+    # loads), so the bias moves it modestly; with the same noise and scatter draws (the bias has a
+    # stream of its own) the replicates must differ and spread wider.
+    problem, fit, noise_models, rules = accelerometer_gradient_fit
+    seed = bootstrap_seed(problem.recordings, fit.effect_ids)
+    plain = bootstrap(problem, fit, noise_models, 6, rules.fit_iterations, seed)
+    biased = bootstrap(problem, fit, noise_models, 6, rules.fit_iterations, seed, decel_bias_sigma=0.05)
+    assert not np.array_equal(biased.estimates, plain.estimates)
+    assert np.std(biased.estimates[:, 0]) > np.std(plain.estimates[:, 0]), (biased.ci95, plain.ci95)
+    # A deceleration taken from the speed has no bias to draw: the same replicates bit for bit.
+    problem, fit, noise_models, rules = gradient_fit
+    seed = bootstrap_seed(problem.recordings, fit.effect_ids)
+    plain = bootstrap(problem, fit, noise_models, 3, rules.fit_iterations, seed)
+    biased = bootstrap(problem, fit, noise_models, 3, rules.fit_iterations, seed, decel_bias_sigma=0.05)
+    assert biased.estimates.tobytes() == plain.estimates.tobytes()
 
 
 def test_too_few_replicates_give_no_bootstrap(gradient_fit):

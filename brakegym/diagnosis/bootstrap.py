@@ -14,7 +14,11 @@ Each replicate
   running resistance A shifts a gradient), which is what moves the estimates;
 - adds fresh noise to each channel on the recording's own samples (the rows the fit uses, in time
   order), drawn from the channel's estimated AR(1) noise model (:mod:`.noise`: level sigma,
-  lag-1 autocorrelation rho per sample of the channel's own sampling);
+  lag-1 autocorrelation rho per sample of the channel's own sampling), and to each accelerometer
+  a fresh bias, one constant per recording, from the scatter of the biases between recordings
+  that the standstill readings show (:func:`.inputs.accelerometer_bias_sigma`; none where they
+  show none). The biases come from a stream of their own, so a set without bias draws the same
+  noise as before;
 - refits the selected model only (not the whole selection: the cost stays bounded) with
   :meth:`.fitting.FitProblem.fit`, from the fitted values, with the set's inputs (pressures) and
   noise levels as they are. Integer parameters stay at their selected value.
@@ -43,6 +47,7 @@ from scipy import stats
 from .. import config as cfg
 from ..effects import FrictionLevel
 from ..plants import train_scatter
+from ..recordings.columns import DECEL
 from ..recordings.logger import ar1_noise
 from .fitting import FitProblem, FitResult, Samples
 from .judging import Candidate
@@ -80,11 +85,17 @@ def bootstrap_seed(recordings: Sequence, effect_ids: Sequence[str]) -> int:
 
 
 def _replica_noise(
-    problem: FitProblem, noise_models: Mapping[str, ChannelNoise], rng: np.random.Generator, replicates: int
+    problem: FitProblem,
+    noise_models: Mapping[str, ChannelNoise],
+    rng: np.random.Generator,
+    replicates: int,
+    decel_bias_sigma: float = 0.0,
+    bias_rng: np.random.Generator | None = None,
 ) -> np.ndarray:
     """(replicates, data rows): AR(1) noise, normalised by each channel's noise level, on every
     recording's fit rows in the problem's row order. The noise runs along each channel's own
-    samples (its non-blank cells), then is taken at the rows the fit uses."""
+    samples (its non-blank cells), then is taken at the rows the fit uses. An accelerometer's
+    rows get one bias per recording and replicate, N(0, ``decel_bias_sigma``) from ``bias_rng``."""
     parts = []
     for recording, samples in zip(problem.recordings, problem.samples):
         for channel, rows in samples.rows.items():
@@ -93,7 +104,11 @@ def _replica_noise(
             sigma = model.sigma if model is not None and np.isfinite(model.sigma) else problem.noise[channel]
             present = np.flatnonzero(~np.isnan(recording.channel(channel)))
             noise = ar1_noise(rng, (len(present), replicates), sigma, float(np.clip(rho, -0.99, 0.99)))
-            parts.append(noise[np.searchsorted(present, rows)].T / problem.noise[channel])
+            noise = noise[np.searchsorted(present, rows)]
+            accelerometer = channel == DECEL and recording.metadata.decel_source == "accelerometer"
+            if accelerometer and decel_bias_sigma > 0.0 and bias_rng is not None:
+                noise = noise + bias_rng.normal(0.0, decel_bias_sigma, replicates)[None, :]
+            parts.append(noise.T / problem.noise[channel])
     return np.concatenate(parts, axis=1)
 
 
@@ -121,9 +136,11 @@ def bootstrap(
     fit_iterations: int,
     seed: int,
     scatter_setup: str = "mcs-75-25",
+    decel_bias_sigma: float = 0.0,
 ) -> BootstrapResult | None:
     """The parametric bootstrap of ``fit`` (see the module documentation); None when the fit has
-    no continuous parameter or fewer than 3 replicates are asked for."""
+    no continuous parameter or fewer than 3 replicates are asked for. ``decel_bias_sigma``: the
+    scatter of the accelerometer bias between recordings, m/s^2."""
     p, n = len(fit.free), problem.n
     if p == 0 or replicates < 3:
         return None
@@ -139,7 +156,8 @@ def bootstrap(
         [s.measured[c] / problem.noise[c] for s in problem.samples for c in s.rows]
     )  # the rows' order of FitProblem._residual
     simulated = measured[None, :] - residuals[:, data_rows]
-    noisy = simulated + _replica_noise(problem, noise_models, rng, replicates)
+    bias_rng = np.random.default_rng([seed, 1])
+    noisy = simulated + _replica_noise(problem, noise_models, rng, replicates, decel_bias_sigma, bias_rng)
     estimates = np.empty((replicates, p))
     for b in range(replicates):
         replica = _replica(problem, noisy[b])
@@ -177,12 +195,16 @@ def merged_intervals(
 
 
 def add_bootstrap_intervals(
-    problem: FitProblem, selected: Candidate, noise_models: Mapping[str, ChannelNoise], rules: DiagnosisRules
+    problem: FitProblem,
+    selected: Candidate,
+    noise_models: Mapping[str, ChannelNoise],
+    rules: DiagnosisRules,
+    decel_bias_sigma: float = 0.0,
 ) -> BootstrapResult | None:
     """Bootstrap the selected candidate's fit and write its intervals into its report entry:
     ``ci95`` becomes the hull of the Gauss-Newton/jackknife interval (kept as
     ``ci95_gauss_newton_jackknife``) and the bootstrap's (``ci95_bootstrap``, from
-    ``bootstrap_replicates`` replicates)."""
+    ``bootstrap_replicates`` replicates; ``decel_bias_sigma`` as for :func:`bootstrap`)."""
     fit = selected.fit
     seed = bootstrap_seed(problem.recordings, selected.effect_ids)
     result = bootstrap(
@@ -193,6 +215,7 @@ def add_bootstrap_intervals(
         rules.fit_iterations,
         seed,
         rules.bootstrap_scatter_setup,
+        decel_bias_sigma,
     )
     if result is None:
         return None

@@ -20,11 +20,16 @@ reports of each recording's measurement chain as the data show it.
   step the values lie on; per pressure transducer its zero reading and the offset removed, and for
   an accelerometer the reading at standstill (its bias less g x gradient; not corrected). Reported
   under ``measurement_chain`` in the diagnosis report.
+- **Accelerometer bias.** A bias is a constant on every sample of a recording, which no sample
+  noise model holds. Its scatter between recordings, from the standstill readings
+  (:func:`accelerometer_bias_sigma`), is drawn afresh for each recording in the parametric
+  bootstrap (:mod:`.bootstrap`), so the intervals carry what a bias moves.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -35,7 +40,7 @@ from ..recordings.columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 from ..recordings.format import Recording
 from ..recordings.replay import standstill_index
 from .locate import brake_onset_s
-from .noise import channel_samples, quantisation_step, zero_reading
+from .noise import ChannelNoise, channel_samples, quantisation_step, zero_reading
 
 CHAIN_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE, POSITION)
 # After the measured stop the deceleration steps to zero within a sample or two of the speed
@@ -44,6 +49,8 @@ STANDSTILL_SETTLING_S = 0.5
 # A zero offset is read from at least this many samples before the brake onset, fewer than this
 # share of them saturated at 0 bar (see PressureZero).
 MIN_ZERO_SAMPLES = 10
+# Recordings with a standstill reading needed to estimate the accelerometer bias's scatter.
+MIN_BIAS_READINGS = 3
 MAX_SATURATED_SHARE = 0.25
 
 
@@ -140,6 +147,35 @@ def zero_corrected(recording: Recording) -> Recording:
     return dataclasses.replace(recording, data=data)
 
 
+def accelerometer_at_standstill(recording: Recording) -> dict[str, float | int] | None:
+    """An accelerometer's reading at standstill, after the stop's own transient (median and
+    samples, :func:`.noise.zero_reading`): its bias less g x the gradient where the train stands,
+    the two being one number. None without an accelerometer, a stop, or a sample after it."""
+    decel = recording.channel(DECEL)
+    stop = standstill_index(recording.speed_mps)
+    if decel is None or recording.metadata.decel_source != "accelerometer" or stop is None:
+        return None
+    standing = recording.time_s > recording.time_s[stop] + STANDSTILL_SETTLING_S
+    return zero_reading(decel[standing])
+
+
+def accelerometer_bias_sigma(recordings: Sequence[Recording], noise: ChannelNoise | None) -> float:
+    """The scatter of the accelerometer's bias between recordings (m/s^2) as the data show it: the
+    spread (ddof 1) of the recordings' standstill readings, less what the channel's noise explains
+    of it (each reading a median of AR(1) samples: variance sigma^2 (1 + rho) / (1 - rho) / samples
+    x pi / 2), 0 where nothing is left or fewer than ``MIN_BIAS_READINGS`` recordings have a
+    reading. On one line each reading is the bias less g x the gradient where the train stood:
+    stops on different gradients make it an upper bound, so the intervals it widens err wide."""
+    readings = [r for r in (accelerometer_at_standstill(recording) for recording in recordings) if r is not None]
+    if len(readings) < MIN_BIAS_READINGS or noise is None or not np.isfinite(noise.sigma):
+        return 0.0
+    rho = float(np.clip(noise.rho, 0.0, 0.99)) if np.isfinite(noise.rho) else 0.0
+    per_sample = noise.sigma**2 * (1.0 + rho) / (1.0 - rho) * math.pi / 2.0
+    reading_variance = float(np.mean([per_sample / r["samples"] for r in readings]))
+    spread = float(np.var([r["median"] for r in readings], ddof=1))
+    return math.sqrt(max(spread - reading_variance, 0.0))
+
+
 def _channel_description(recording: Recording, channel: str) -> dict[str, Any] | None:
     values = recording.channel(channel)
     if values is None:
@@ -185,13 +221,9 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
         unidentified = [column for column, zero in zeros.items() if not zero.identifiable]
         if unidentified:
             out["pressure_zero_offset_not_identifiable"][recording.stem] = unidentified
-        decel = recording.channel(DECEL)
-        stop = standstill_index(recording.speed_mps)
-        if decel is not None and recording.metadata.decel_source == "accelerometer" and stop is not None:
-            # At standstill (after the stop's own transient) an accelerometer reads its bias less
-            # g x gradient: the two are one number.
-            standing = recording.time_s > recording.time_s[stop] + STANDSTILL_SETTLING_S
-            entry["accelerometer_at_standstill_mps2"] = zero_reading(decel[standing])
+        accelerometer = recording.channel(DECEL) is not None and recording.metadata.decel_source == "accelerometer"
+        if accelerometer and standstill_index(recording.speed_mps) is not None:
+            entry["accelerometer_at_standstill_mps2"] = accelerometer_at_standstill(recording)
         out["recordings"][recording.stem] = entry
         initial = initial_disc_temperature(recording)
         if initial.source != "given":

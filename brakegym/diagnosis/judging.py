@@ -123,6 +123,24 @@ def shared_friction_shift(level: float, factors: np.ndarray, prior_sigma: float)
     return FrictionLevelShift(level, scatter, standard_error, (level - 1.0) / standard_error)
 
 
+def mismatch_explained_share(weighting: Weighting, baseline_residual: np.ndarray, chi2_eff: float) -> float | None:
+    """The share of the unmodified model's mismatch beyond sample noise that a fit of effective
+    chi^2 ``chi2_eff`` removes: (chi^2 unmodified - chi^2 fit) / (chi^2 unmodified - chi^2 of
+    noise alone), the noise's being the effective samples plus one per friction-factor prior row.
+    None where the unmodified model is within noise.
+
+    The mismatch includes what one friction factor per recording cannot absorb of the friction
+    scatter between discs, so an effect the data hold takes less than all of it, and a friction
+    level, seen through the factors' shared shift rather than the samples, takes next to none.
+    Reported, not used by any rule: an effect that takes a small part of a larger mismatch (an
+    adhesion limit standing in for physics outside the library) shows here."""
+    noise_chi2 = weighting.n_eff_total + weighting.problem.n
+    base_chi2 = weighting.chi2(baseline_residual)
+    if base_chi2 <= noise_chi2:
+        return None
+    return (base_chi2 - chi2_eff) / (base_chi2 - noise_chi2)
+
+
 @dataclass
 class Verdict:
     """What the data select, and what they leave open."""

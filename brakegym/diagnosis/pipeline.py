@@ -58,7 +58,7 @@ from ..recordings.format import Recording, read_dataset
 from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
-from .inputs import chain_report, zero_corrected
+from .inputs import accelerometer_bias_sigma, chain_report, zero_corrected
 from .judging import Candidate, Judge, shared_friction_shift
 from .locate import (
     NOISE_CHANNELS,
@@ -118,6 +118,7 @@ class Diagnoser:
         # in noise sigmas would be twice too lax.
         self.noise = {c: self.noise_models[c].sigma if c in self.noise_models else float("nan") for c in NOISE_CHANNELS}
         fit_noise = {c: v for c, v in self.noise.items() if np.isfinite(v) and v > 0}
+        self.decel_bias_sigma = accelerometer_bias_sigma(self.recordings, self.noise_models.get(DECEL))
         # The fit replays each recording with its transducers' identifiable zero offsets removed;
         # the report describes the recordings as they were read.
         self.problem = FitProblem([zero_corrected(r) for r in self.recordings], fit_noise)
@@ -183,19 +184,32 @@ class Diagnoser:
                 raise ValueError(
                     f"effect(s) {unscreened} have no screening point on these recordings; give start values"
                 )
-            start = {}
+            start, best_chi2 = {}, math.inf
             for effect_id in open_ids:
                 point = screened[effect_id]
                 fixed.update(point.fixed)
                 start.update(zip(_free_names(problem, effect_id, point.fixed), point.theta))
-            if len(open_ids) == 1:
-                nuisance = screened[open_ids[0]].nuisance
+                if len(open_ids) == 1:
+                    nuisance = point.nuisance
+                    continue
+                # With several, each is fitted alone first and the joint fit starts from their
+                # parameters and the better one's nuisance, as the diagnosis fits its pairs: from
+                # separate screened points a joint fit can end far from the optimum.
+                alone = problem.fit(
+                    [effect_id],
+                    np.concatenate([point.theta, point.nuisance]),
+                    fixed=point.fixed,
+                    max_iterations=rules.fit_iterations,
+                )
+                start.update(alone.parameters)
+                if weighting.chi2(alone.residual) < best_chi2:
+                    best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
         free = problem.free_parameters(list(ids), fixed)
         x0 = np.concatenate([[start[parameter.name] for parameter in free], nuisance])
         fit = problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations)
         candidate = Judge(problem, weighting, rules, evidence, baseline).candidate(ids, fit)
         candidate_entries(problem, weighting, baseline, [candidate])
-        add_bootstrap_intervals(problem, candidate, self.noise_models, rules)
+        add_bootstrap_intervals(problem, candidate, self.noise_models, rules, self.decel_bias_sigma)
         return candidate
 
     def run(self) -> Diagnosis:
@@ -223,7 +237,7 @@ class Diagnoser:
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
         entries = candidate_entries(problem, weighting, baseline, singles + pairs)
         if verdict.selected is not None:
-            add_bootstrap_intervals(problem, verdict.selected, self.noise_models, rules)
+            add_bootstrap_intervals(problem, verdict.selected, self.noise_models, rules, self.decel_bias_sigma)
         report = build_report(
             problem,
             weighting,
@@ -243,6 +257,10 @@ class Diagnoser:
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
         }
+        if CHANNEL_NAMES[DECEL] in report["noise_model"]:
+            report["noise_model"][CHANNEL_NAMES[DECEL]]["bias_sigma_between_recordings"] = round(
+                self.decel_bias_sigma, 5
+            )
         if verdict.selected is not None and "adhesion_limit" in verdict.selected.effect_ids:
             # The cap read as a rail: its peak adhesion, the nearest condition and Polach's mu_0.
             mass_kg = float(np.mean([recording.mass_kg for recording in self.recordings]))

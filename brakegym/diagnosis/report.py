@@ -26,7 +26,7 @@ from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.replay import compare
 from ..statistics import gauss_newton_covariance
 from .fitting import FitProblem, FitResult
-from .judging import Candidate, Verdict
+from .judging import Candidate, Verdict, mismatch_explained_share
 from .screening import ScreenedPoint
 from .weighting import CHANNEL_NAMES, Weighting
 
@@ -80,6 +80,7 @@ def candidate_entries(
     entries = []
     for candidate in sorted(candidates, key=lambda c: c.delta_bic):
         fit = candidate.fit
+        share = mismatch_explained_share(weighting, baseline.residual, candidate.chi2_eff)
         candidate.report.update(
             {
                 "effects": list(candidate.effect_ids),
@@ -90,6 +91,7 @@ def candidate_entries(
                 "heldout_rms_before": base_rms,
                 "heldout_rms_after": weighting.rms(candidate.heldout.residual),
                 "delta_bic": round(candidate.delta_bic, 1),
+                "mismatch_explained_share": None if share is None else round(share, 3),
                 "relevant_size": candidate.relevant,
                 "stop_distance_error_before": base_stop,
                 "stop_distance_error_after": stop_errors(fit),
