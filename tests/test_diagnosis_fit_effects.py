@@ -51,3 +51,11 @@ def test_a_parameter_without_a_value_is_refused_by_name(diagnoser):
     # An integer parameter is held, so its value goes in ``fixed``.
     with pytest.raises(ValueError, match="failed_units"):
         diagnoser.fit_effects(["brake_unit_failure"], {})
+
+
+def test_an_integer_parameter_is_held_where_it_is_given(diagnoser):
+    # Screened with the value held, the failed units stay at it: the model the user names, not the
+    # one the screening would pick (on a gradient set, with no failed unit at all).
+    candidate = diagnoser.fit_effects(["brake_unit_failure"], fixed={"failed_units": 3.0})
+    assert candidate.report["parameters"] == {"failed_units": 3.0}
+    assert candidate.report["ci95"] == {"failed_units": [3.0, 3.0]}
