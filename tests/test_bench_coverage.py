@@ -3,22 +3,12 @@ each interval kind counted per parameter, an effect not expressed in the data co
 per-effect count of sets where every interval holds the truth, and the exact binomial interval of
 a coverage. No fit runs here."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_coverage.py"
 
 
 @pytest.fixture(scope="module")
-def bench():
-    spec = importlib.util.spec_from_file_location("bench_coverage", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_coverage"] = module
-    spec.loader.exec_module(module)
-    return module
+def bench(load_benchmark):
+    return load_benchmark("bench_coverage")
 
 
 def row(effect, truth, fitted, ci95, gauss_newton_jackknife=None, bootstrap=None, expressed=True):

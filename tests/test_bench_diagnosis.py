@@ -3,26 +3,17 @@ counted both ways, the confusion matrix, the false-naming rate, interval coverag
 where the model is right; and the SINDy baseline (:mod:`brakegym.diagnosis.baseline`) recovering
 a known sparse answer from a synthetic residual. No diagnosis runs here."""
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_diagnosis.py"
-
 
 @pytest.fixture(scope="module")
-def bench():
-    spec = importlib.util.spec_from_file_location("bench_diagnosis", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_diagnosis"] = module
-    spec.loader.exec_module(module)
-    return module
+def bench(load_benchmark):
+    return load_benchmark("bench_diagnosis")
 
 
 def row(truth, selected, *, out_of_library=(), unexplained=False, parameters=None, ci95=None, method="brakegym"):
