@@ -89,8 +89,8 @@ def _replica_noise(
     noise_models: Mapping[str, ChannelNoise],
     rng: np.random.Generator,
     replicates: int,
-    decel_bias_sigma: float = 0.0,
-    bias_rng: np.random.Generator | None = None,
+    decel_bias_sigma: float,
+    bias_rng: np.random.Generator,
 ) -> np.ndarray:
     """(replicates, data rows): AR(1) noise, normalised by each channel's noise level, on every
     recording's fit rows in the problem's row order. The noise runs along each channel's own
@@ -106,7 +106,7 @@ def _replica_noise(
             noise = ar1_noise(rng, (len(present), replicates), sigma, float(np.clip(rho, -0.99, 0.99)))
             noise = noise[np.searchsorted(present, rows)]
             accelerometer = channel == DECEL and recording.metadata.decel_source == "accelerometer"
-            if accelerometer and decel_bias_sigma > 0.0 and bias_rng is not None:
+            if accelerometer and decel_bias_sigma > 0.0:
                 noise = noise + bias_rng.normal(0.0, decel_bias_sigma, replicates)[None, :]
             parts.append(noise.T / problem.noise[channel])
     return np.concatenate(parts, axis=1)

@@ -147,16 +147,22 @@ def zero_corrected(recording: Recording) -> Recording:
     return dataclasses.replace(recording, data=data)
 
 
-def accelerometer_at_standstill(recording: Recording) -> dict[str, float | int] | None:
-    """An accelerometer's reading at standstill, after the stop's own transient (median and
-    samples, :func:`.noise.zero_reading`): its bias less g x the gradient where the train stands,
-    the two being one number. None without an accelerometer, a stop, or a sample after it."""
+def _accelerometer_standing(recording: Recording) -> np.ndarray | None:
+    """An accelerometer's samples at standstill, after the stop's own transient; None without an
+    accelerometer or a stop."""
     decel = recording.channel(DECEL)
     stop = standstill_index(recording.speed_mps)
     if decel is None or recording.metadata.decel_source != "accelerometer" or stop is None:
         return None
-    standing = recording.time_s > recording.time_s[stop] + STANDSTILL_SETTLING_S
-    return zero_reading(decel[standing])
+    return decel[recording.time_s > recording.time_s[stop] + STANDSTILL_SETTLING_S]
+
+
+def accelerometer_at_standstill(recording: Recording) -> dict[str, float | int] | None:
+    """An accelerometer's reading at standstill, after the stop's own transient (median and
+    samples, :func:`.noise.zero_reading`): its bias less g x the gradient where the train stands,
+    the two being one number. None without an accelerometer, a stop, or a sample after it."""
+    standing = _accelerometer_standing(recording)
+    return None if standing is None else zero_reading(standing)
 
 
 def accelerometer_bias_sigma(recordings: Sequence[Recording], noise: ChannelNoise | None) -> float:
@@ -221,9 +227,9 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
         unidentified = [column for column, zero in zeros.items() if not zero.identifiable]
         if unidentified:
             out["pressure_zero_offset_not_identifiable"][recording.stem] = unidentified
-        accelerometer = recording.channel(DECEL) is not None and recording.metadata.decel_source == "accelerometer"
-        if accelerometer and standstill_index(recording.speed_mps) is not None:
-            entry["accelerometer_at_standstill_mps2"] = accelerometer_at_standstill(recording)
+        standing = _accelerometer_standing(recording)
+        if standing is not None:
+            entry["accelerometer_at_standstill_mps2"] = zero_reading(standing)
         out["recordings"][recording.stem] = entry
         initial = initial_disc_temperature(recording)
         if initial.source != "given":

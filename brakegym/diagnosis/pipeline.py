@@ -176,34 +176,7 @@ class Diagnoser:
         evidence = self._evidence(baseline, None)
         nuisance = baseline.x[len(baseline.free) :]
         if start is None:
-            screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
-            open_ids = [e for e in ids if any(spec.name not in fixed for spec in EFFECTS[e].parameters)]
-            screened = screening.run(open_ids, held=fixed)
-            unscreened = sorted(set(open_ids) - set(screened))
-            if unscreened:
-                raise ValueError(
-                    f"effect(s) {unscreened} have no screening point on these recordings; give start values"
-                )
-            start, best_chi2 = {}, math.inf
-            for effect_id in open_ids:
-                point = screened[effect_id]
-                fixed.update(point.fixed)
-                start.update(zip(_free_names(problem, effect_id, point.fixed), point.theta))
-                if len(open_ids) == 1:
-                    nuisance = point.nuisance
-                    continue
-                # With several, each is fitted alone first and the joint fit starts from their
-                # parameters and the better one's nuisance, as the diagnosis fits its pairs: from
-                # separate screened points a joint fit can end far from the optimum.
-                alone = problem.fit(
-                    [effect_id],
-                    np.concatenate([point.theta, point.nuisance]),
-                    fixed=point.fixed,
-                    max_iterations=rules.fit_iterations,
-                )
-                start.update(alone.parameters)
-                if weighting.chi2(alone.residual) < best_chi2:
-                    best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
+            start, nuisance = self._screened_start(ids, fixed, weighting, evidence, baseline)
         free = problem.free_parameters(list(ids), fixed)
         x0 = np.concatenate([[start[parameter.name] for parameter in free], nuisance])
         fit = problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations)
@@ -211,6 +184,45 @@ class Diagnoser:
         candidate_entries(problem, weighting, baseline, [candidate])
         add_bootstrap_intervals(problem, candidate, self.noise_models, rules, self.decel_bias_sigma)
         return candidate
+
+    def _screened_start(
+        self,
+        ids: tuple[str, ...],
+        fixed: dict[str, float],
+        weighting: Weighting,
+        evidence: Evidence,
+        baseline: FitResult,
+    ) -> tuple[dict[str, float], np.ndarray]:
+        """Where :meth:`fit_effects` starts without given values: each effect's best screened
+        point (``fixed`` takes its integer parameters), and the nuisance of that point with one
+        effect. With several, each is fitted alone first and the joint fit starts from their
+        parameters and the better one's nuisance, as the diagnosis fits its pairs: from separate
+        screened points a joint fit can end far from the optimum."""
+        problem, rules = self.problem, self.rules
+        screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
+        open_ids = [e for e in ids if any(spec.name not in fixed for spec in EFFECTS[e].parameters)]
+        screened = screening.run(open_ids, held=fixed)
+        unscreened = sorted(set(open_ids) - set(screened))
+        if unscreened:
+            raise ValueError(f"effect(s) {unscreened} have no screening point on these recordings; give start values")
+        start: dict[str, float] = {}
+        nuisance, best_chi2 = baseline.x[len(baseline.free) :], math.inf
+        for effect_id in open_ids:
+            point = screened[effect_id]
+            fixed.update(point.fixed)
+            start.update(zip(_free_names(problem, effect_id, point.fixed), point.theta))
+            if len(open_ids) == 1:
+                return start, point.nuisance
+            alone = problem.fit(
+                [effect_id],
+                np.concatenate([point.theta, point.nuisance]),
+                fixed=point.fixed,
+                max_iterations=rules.fit_iterations,
+            )
+            start.update(alone.parameters)
+            if weighting.chi2(alone.residual) < best_chi2:
+                best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
+        return start, nuisance
 
     def run(self) -> Diagnosis:
         problem, rules = self.problem, self.rules
