@@ -193,11 +193,11 @@ class Diagnoser:
         evidence: Evidence,
         baseline: FitResult,
     ) -> tuple[dict[str, float], np.ndarray]:
-        """Where :meth:`fit_effects` starts without given values: each effect's best screened
-        point (``fixed`` takes its integer parameters), and the nuisance of that point with one
-        effect. With several, each is fitted alone first and the joint fit starts from their
-        parameters and the better one's nuisance, as the diagnosis fits its pairs: from separate
-        screened points a joint fit can end far from the optimum."""
+        """Where :meth:`fit_effects` starts without given values: each effect fitted alone from
+        its screening as the diagnosis fits its singles (:meth:`_fit_screened`; an integer
+        parameter not held takes the value of that fit, into ``fixed``), and the joint fit from
+        their parameters and the better one's nuisance, as the diagnosis fits its pairs: from
+        separate screened points a joint fit can end far from the optimum."""
         problem, rules = self.problem, self.rules
         screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
         open_ids = [e for e in ids if any(spec.name not in fixed for spec in EFFECTS[e].parameters)]
@@ -207,18 +207,12 @@ class Diagnoser:
             raise ValueError(f"effect(s) {unscreened} have no screening point on these recordings; give start values")
         start: dict[str, float] = {}
         nuisance, best_chi2 = baseline.x[len(baseline.free) :], math.inf
+        held = dict(fixed)
         for effect_id in open_ids:
             point = screened[effect_id]
-            fixed.update(point.fixed)
-            start.update(zip(_free_names(problem, effect_id, point.fixed), point.theta))
-            if len(open_ids) == 1:
-                return start, point.nuisance
-            alone = problem.fit(
-                [effect_id],
-                np.concatenate([point.theta, point.nuisance]),
-                fixed=point.fixed,
-                max_iterations=rules.fit_iterations,
-            )
+            vary = not any(spec.integer and spec.name in held for spec in EFFECTS[effect_id].parameters)
+            alone = self._fit_screened(screening, effect_id, point, weighting, vary)
+            fixed.update(alone.fixed)
             start.update(alone.parameters)
             if weighting.chi2(alone.residual) < best_chi2:
                 best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
@@ -287,25 +281,51 @@ class Diagnoser:
         point does not beat the unmodified model has its optimum at (or next to) its no-effect
         value: fitting it in full costs the most (several effects run their hooks in Python at
         every RK4 stage) and can only confirm that."""
-        problem, rules = self.problem, self.rules
+        rules = self.rules
         order = sorted(screened, key=lambda e: screened[e].chi2)
         promising = [e for e in order if screened[e].chi2 < judge.chi2_base - rules.screen_min_gain]
         singles = []
         for effect_id in self._with_shared_shift(promising, rules.top_singles, screened):
-            point = screened[effect_id]
-            start = np.concatenate([point.theta, point.nuisance])
-            fits = [problem.fit([effect_id], start, fixed=point.fixed, max_iterations=rules.fit_iterations)]
-            # An integer parameter's neighbours are fitted in full too: the screening's chord
-            # iterations leave a few percent of chi^2 unconverged, as much as one failed unit of
-            # sixteen is worth once the friction factors have absorbed most of it.
-            for neighbour in integer_neighbours(effect_id, point.fixed):
-                nuisance = screening.starts(effect_id, neighbour, point.theta[None])[0]
-                start = np.concatenate([point.theta, nuisance])
-                fits.append(problem.fit([effect_id], start, fixed=neighbour, max_iterations=rules.fit_iterations))
-            fit = min(fits, key=lambda f: judge.weighting.chi2(f.residual))
+            fit = self._fit_screened(screening, effect_id, screened[effect_id], judge.weighting)
             singles.append(judge.candidate((effect_id,), fit))
         singles.sort(key=lambda c: c.delta_bic)
         return singles
+
+    def _fit_screened(
+        self,
+        screening: Screening,
+        effect_id: str,
+        point: ScreenedPoint,
+        weighting: Weighting,
+        vary_integer: bool = True,
+    ) -> FitResult:
+        """``effect_id`` fitted alone in full from several starts, the fit of least effective
+        chi^2 kept:
+
+        - its best screened ``point``, with the point's nuisance;
+        - the point with the nuisance gridded with the effect acting
+          (:meth:`.fitting.FitProblem.gridded_start`): the point's nuisance comes from the
+          unmodified model's, which can lie in a valley of its own;
+        - the best points of the grid's other valleys (``screen_valleys`` in all): wet pads'
+          chi^2 has a second valley, a larger loss drying more slowly against friction factors
+          20 % high, that the coarse grid can rate best;
+        - an integer parameter's neighbours (unless not ``vary_integer``): the screening's chord
+          iterations leave a few percent of chi^2 unconverged, as much as one failed unit of
+          sixteen is worth once the friction factors have absorbed most of it.
+        """
+        problem, rules = self.problem, self.rules
+        free = problem.free_parameters([effect_id], point.fixed)
+        gridded = problem.gridded_start([effect_id], point.fixed, free, point.theta)
+        starts = [(point.fixed, point.theta, point.nuisance), (point.fixed, point.theta, gridded)]
+        starts += [(v.fixed, v.theta, v.nuisance) for v in point.other_valleys[: rules.screen_valleys - 1]]
+        for neighbour in integer_neighbours(effect_id, point.fixed) if vary_integer else ():
+            starts.append((neighbour, point.theta, screening.starts(effect_id, neighbour, point.theta[None])[0]))
+        iterations = rules.fit_iterations
+        fits = [
+            problem.fit([effect_id], np.concatenate([theta, nuisance]), fixed=fixed, max_iterations=iterations)
+            for fixed, theta, nuisance in starts
+        ]
+        return min(fits, key=lambda f: weighting.chi2(f.residual))
 
     def _fit_pairs(self, singles: Sequence[Candidate], judge: Judge) -> list[Candidate]:
         """The pairs of the best ``pairs_from`` singles, fitted from the singles' parameters and

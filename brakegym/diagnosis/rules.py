@@ -107,6 +107,9 @@ class DiagnosisRules:
     forward_pairs: int = 2
     #: iterations of a candidate's full fit
     fit_iterations: int = 8
+    #: a single's full fit starts from the best points of this many valleys (local minima) of
+    #: its screening grid, best first, and keeps the fit of least chi^2
+    screen_valleys: int = 2
 
     # -- intervals ------------------------------------------------------------------------------
     #: replicates of the parametric bootstrap of the selected model's parameters (:mod:`.bootstrap`);

@@ -36,6 +36,9 @@ class ScreenedPoint:
     fixed: dict[str, float]  # integer parameters held at a whole value
     theta: np.ndarray  # the free effect parameters
     nuisance: np.ndarray  # [v0 (n), T0 (n), k (n)]
+    #: the best points of the grid's other valleys (its local minima but the one of this point),
+    #: best first: starts for a full fit where the chi^2 has more than one valley
+    other_valleys: tuple[ScreenedPoint, ...] = ()
 
 
 def grid(effect_id: str, rules: DiagnosisRules) -> list[tuple[dict[str, float], np.ndarray]]:
@@ -53,6 +56,27 @@ def grid(effect_id: str, rules: DiagnosisRules) -> list[tuple[dict[str, float], 
     specs = cls.parameters
     axes = [spec.grid(rules.grid_points(len(specs))) for spec in specs]
     return [({}, np.array(point)) for point in itertools.product(*axes)]
+
+
+def grid_minima(effect_id: str, rules: DiagnosisRules, chi2s: np.ndarray) -> list[int]:
+    """The indices of the local minima of ``chi2s`` over :func:`grid`'s points of an effect
+    without integer parameters (in its order): the points below every neighbour along each
+    parameter's axis."""
+    specs = EFFECTS[effect_id].parameters
+    shape = (rules.grid_points(len(specs)),) * len(specs)
+    values = np.asarray(chi2s, dtype=float).reshape(shape)
+    minima = []
+    for index in np.ndindex(shape):
+        neighbours = []
+        for axis in range(len(shape)):
+            for offset in (-1, 1):
+                other = list(index)
+                other[axis] += offset
+                if 0 <= other[axis] < shape[axis]:
+                    neighbours.append(values[tuple(other)])
+        if all(values[index] < value for value in neighbours):
+            minima.append(int(np.ravel_multi_index(index, shape)))
+    return minima
 
 
 def integer_neighbours(effect_id: str, fixed: dict[str, float]) -> list[dict[str, float]]:
@@ -145,6 +169,7 @@ class Screening:
             extra = EFFECTS[effect_id].screening_points(evidence)
             if extra:
                 by_fixed.setdefault((), []).extend(extra)
+            valleys: list[ScreenedPoint] = []
             for fixed_items, thetas in by_fixed.items():
                 fixed = dict(fixed_items)
                 points = np.array(thetas)
@@ -152,9 +177,18 @@ class Screening:
                 for theta, chi2, nuisance in zip(points, chi2s, nuisances):
                     if effect_id not in best or chi2 < best[effect_id].chi2:
                         best[effect_id] = ScreenedPoint(chi2, fixed, theta, nuisance)
+                if not fixed and grid(effect_id, self.rules):
+                    size = len(grid(effect_id, self.rules))
+                    for j in grid_minima(effect_id, self.rules, chi2s[:size]):
+                        valleys.append(ScreenedPoint(float(chi2s[j]), fixed, points[j], nuisances[j]))
+            if effect_id in best:
+                point = best[effect_id]
+                others = [v for v in valleys if not np.array_equal(v.theta, point.theta)]
+                point.other_valleys = tuple(sorted(others, key=lambda v: v.chi2))
         for effect_id, point in best.items():
             refined = self._refined(effect_id, point)
             if refined is not None:
+                refined.other_valleys = point.other_valleys
                 best[effect_id] = refined
         return best
 
