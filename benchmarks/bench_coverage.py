@@ -22,7 +22,9 @@ relative error; per effect, the sets where every parameter's interval holds it.
 
 Usage: ``python benchmarks/bench_coverage.py --sets-per-effect 4 --seed 1 --json cov1.json``.
 Runs with different seeds can go on side by side (one per core) and be summarized together:
-``python benchmarks/bench_coverage.py --summarize cov1.json cov2.json``.
+``python benchmarks/bench_coverage.py --summarize cov1.json cov2.json``. Single sets of a run (its
+rows name each set's effect and synth seed) again, with today's diagnosis:
+``--set thermal_fade:200304 --set wet_pads:200202``.
 """
 
 from __future__ import annotations
@@ -153,6 +155,14 @@ def print_summary(summary: dict[str, Any]) -> None:
     print(f"  {'all':26s} {covered:3d}/{total:<3d}")
 
 
+def parse_set(parser: argparse.ArgumentParser, text: str) -> tuple[str, int]:
+    """``EFFECT:SEED`` as (effect id, synth seed); a malformed one is refused by name."""
+    effect_id, _, seed = text.partition(":")
+    if not seed.strip().isdigit():
+        parser.error(f"--set {text!r}: expected EFFECT:SEED, a synth seed of whole digits after the colon")
+    return effect_id, int(seed)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--summarize", nargs="+", metavar="ROWS.json", help="summarize earlier runs' rows")
@@ -160,6 +170,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
     parser.add_argument("--effect", action="append", help="an effect id (repeatable; default: synth's random library)")
+    parser.add_argument(
+        "--set", action="append", metavar="EFFECT:SEED", help="one set: an effect id and its synth seed (repeatable)"
+    )
     parser.add_argument("--measurement-chain", help="a measurement chain of configs/chains (default: clean 10 Hz)")
     parser.add_argument("--json", help="write every set's row (after each set)")
     parser.add_argument("--summary-json", metavar="FILE", help="write the summary's numbers as JSON")
@@ -167,20 +180,22 @@ def main() -> None:
     if args.summarize:
         rows = [row for path in args.summarize for row in json.loads(Path(path).read_text())]
     else:
-        effects = args.effect or list(RANDOM_EFFECT_IDS)
-        unknown = sorted(set(effects) - set(EFFECTS))
+        sets = [parse_set(parser, text) for text in args.set or []] or [
+            (effect_id, set_seed(args.seed, index, list(EFFECTS).index(effect_id)))
+            for index in range(args.sets_per_effect)
+            for effect_id in args.effect or list(RANDOM_EFFECT_IDS)
+        ]
+        unknown = sorted({effect_id for effect_id, _ in sets} - set(EFFECTS))
         if unknown:
             parser.error(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
         rows = []
-        for index in range(args.sets_per_effect):
-            for effect_id in effects:
-                seed = set_seed(args.seed, index, list(EFFECTS).index(effect_id))
-                row = measure_set(effect_id, seed, args.recordings, args.measurement_chain)
-                rows.append(row)
-                shown = {k: row.get(k) for k in ("truth", "fitted", "ci95")}
-                print(f"{effect_id:24s} seed {seed}: {json.dumps(shown)}", flush=True)
-                if args.json:
-                    Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+        for effect_id, seed in sets:
+            row = measure_set(effect_id, seed, args.recordings, args.measurement_chain)
+            rows.append(row)
+            shown = {k: row.get(k) for k in ("truth", "fitted", "ci95")}
+            print(f"{effect_id:24s} seed {seed}: {json.dumps(shown)}", flush=True)
+            if args.json:
+                Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
     summary = summarize(rows)
     print()
     print_summary(summary)

@@ -3,6 +3,8 @@ each interval kind counted per parameter, an effect not expressed in the data co
 per-effect count of sets where every interval holds the truth, and the exact binomial interval of
 a coverage. No fit runs here."""
 
+import argparse
+
 import pytest
 
 
@@ -62,3 +64,12 @@ def test_the_exact_binomial_interval_of_a_coverage(bench):
 def test_the_seeds_of_a_run_are_distinct(bench):
     seeds = {bench.set_seed(seed, index, effect) for seed in (1, 2) for index in range(20) for effect in range(12)}
     assert len(seeds) == 2 * 20 * 12
+
+
+def test_a_single_set_is_named_by_its_effect_and_seed(bench):
+    parser = argparse.ArgumentParser()
+    assert bench.parse_set(parser, "wet_pads:200202") == ("wet_pads", 200202)
+    with pytest.raises(SystemExit):
+        bench.parse_set(parser, "wet_pads:20x")
+    with pytest.raises(SystemExit):
+        bench.parse_set(parser, "wet_pads")

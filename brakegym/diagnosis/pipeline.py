@@ -12,8 +12,10 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
 3. **Locate** where its residuals exceed the noise (segments) and the axis of the state along
    which they live (:mod:`.locate`).
 4. **Screen** every effect of the library cheaply (:mod:`.screening`).
-5. **Fit** the best ``top_singles`` effects in full from their best screened points (only those
-   whose screening beats the unmodified model), and the pairs of the best ``pairs_from``; the
+5. **Fit** the best ``top_singles`` effects in full (only those whose screening beats the
+   unmodified model), each from its best screened point, from that point with the nuisance
+   gridded with the effect acting and from the best point of its grid's second valley, the best
+   fit kept (``Diagnoser._fit_screened``); and the pairs of the best ``pairs_from``; the
    friction level too where its screened point shows a shift shared by the recordings' friction
    factors (:func:`.judging.shared_friction_shift`), however it ranks.
 6. **Fallback as a screening source**: with no single passing the rules of :mod:`.judging` and a
@@ -194,7 +196,7 @@ class Diagnoser:
         baseline: FitResult,
     ) -> tuple[dict[str, float], np.ndarray]:
         """Where :meth:`fit_effects` starts without given values: each effect fitted alone from
-        its screening as the diagnosis fits its singles (:meth:`_fit_screened`; an integer
+        its screening as the diagnosis fits its singles (``_fit_screened``; an integer
         parameter not held takes the value of that fit, into ``fixed``), and the joint fit from
         their parameters and the better one's nuisance, as the diagnosis fits its pairs: from
         separate screened points a joint fit can end far from the optimum."""

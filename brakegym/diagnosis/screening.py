@@ -6,7 +6,9 @@ and at the points the data point at (:meth:`brakegym.effects.Effect.screening_po
 of an effect simulated in one batch, each point's nuisance (initial speed, initial disc
 temperature, friction factor of every recording) refitted by chord iterations
 (:meth:`.fitting.FitProblem.chord_refit`). The best point of each effect is then refined by one
-profiled Gauss-Newton step: a grid this coarse leaves a small effect between two points.
+profiled Gauss-Newton step: a grid this coarse leaves a small effect between two points. The
+best points of the grid's other valleys (its local minima) go with it, as starts for a full fit
+where the chi^2 has more than one valley.
 
 Screened against a fit with effects (``given``: the selected single of the forward step), every
 other effect is tried on top of that fit's effects, their parameters held at its values and each
