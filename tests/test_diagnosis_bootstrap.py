@@ -8,6 +8,7 @@ exclude zero (the effect is there) and be narrower than the gradient's size.
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from brakegym.diagnosis.bootstrap import bootstrap, bootstrap_seed, merged_intervals
 from brakegym.diagnosis.fitting import FitProblem
@@ -80,6 +81,12 @@ def test_the_bootstrap_interval_holds_a_known_gradient_and_is_narrower_than_it(g
     # The replicates are real refits: they scatter, and around the fitted value.
     assert np.std(result.estimates[:, 0]) > 0.0
     assert abs(np.mean(result.estimates[:, 0]) - fit.x[0]) < GRADIENT_PERMIL / 2.0
+    # The interval takes in both the bias-corrected one and the one on the estimate.
+    theta, estimates = fit.x[0], result.estimates[:, 0]
+    half = stats.t.ppf(0.975, REPLICATES - 1) * np.std(estimates, ddof=1)
+    corrected = 2.0 * theta - np.mean(estimates)
+    assert low == pytest.approx(min(corrected, theta) - half, abs=1e-5)
+    assert high == pytest.approx(max(corrected, theta) + half, abs=1e-5)
 
 
 def test_an_accelerometer_bias_widens_what_the_replicates_spread(accelerometer_gradient_fit, gradient_fit):
