@@ -9,8 +9,8 @@ jackknife interval, the parametric bootstrap, their hull as ``ci95``), and each 
 interval is checked against the key's value.
 
 What it measures is the intervals, not the selection: the fit starts where the diagnosis starts
-it, at the effect's best screened point, with an integer parameter (failed units) held at the
-key's value; whether the diagnosis selects the effect is ``bench_diagnosis.py``'s question. A set whose effect moves no
+a single's (its screening's starts), with an integer parameter (failed units) held at the key's
+value; whether the diagnosis selects the effect is ``bench_diagnosis.py``'s question. A set whose effect moves no
 sample by a noise sigma (``expressed`` false in the key: a fade onset above every disc temperature
 reached) has nothing to measure and is counted apart. Every set's scatter between applications is
 drawn as ``synth`` draws it, so the truth differs from the fitted model by that scatter as a real
@@ -56,7 +56,8 @@ def set_seed(seed: int, index: int, effect_index: int) -> int:
 
 
 def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -> dict[str, Any]:
-    """One set: synthesized with ``effect_id`` alone, the effect fitted from the key's values."""
+    """One set: synthesized with ``effect_id`` alone, the effect fitted as the diagnosis fits it
+    (an integer parameter held at the key's value)."""
     with tempfile.TemporaryDirectory() as tmp:
         result = synthesize(
             Path(tmp) / "set",
@@ -180,14 +181,16 @@ def main() -> None:
     if args.summarize:
         rows = [row for path in args.summarize for row in json.loads(Path(path).read_text())]
     else:
-        sets = [parse_set(parser, text) for text in args.set or []] or [
-            (effect_id, set_seed(args.seed, index, list(EFFECTS).index(effect_id)))
-            for index in range(args.sets_per_effect)
-            for effect_id in args.effect or list(RANDOM_EFFECT_IDS)
-        ]
-        unknown = sorted({effect_id for effect_id, _ in sets} - set(EFFECTS))
+        named = [parse_set(parser, text) for text in args.set or []]
+        effects = [effect_id for effect_id, _ in named] or args.effect or list(RANDOM_EFFECT_IDS)
+        unknown = sorted(set(effects) - set(EFFECTS))
         if unknown:
             parser.error(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
+        sets = named or [
+            (effect_id, set_seed(args.seed, index, list(EFFECTS).index(effect_id)))
+            for index in range(args.sets_per_effect)
+            for effect_id in effects
+        ]
         rows = []
         for effect_id, seed in sets:
             row = measure_set(effect_id, seed, args.recordings, args.measurement_chain)

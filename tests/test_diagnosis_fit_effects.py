@@ -1,7 +1,7 @@
 """``Diagnoser.fit_effects``: a named model fitted without any selection, reported as a selected
 model is (parameters, the Gauss-Newton/jackknife interval, the bootstrap's, their hull).
 
-The thresholds were fixed before the test first ran: started at its screened point or at half the
+The thresholds were fixed before the test first ran: started from its screening or at half the
 true gradient, the fit lands within 15 % of it, and the reported interval holds it and both intervals it is made of.
 """
 

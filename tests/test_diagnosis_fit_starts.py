@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from brakegym.diagnosis import Diagnoser, DiagnosisRules
-from brakegym.diagnosis.screening import grid, grid_minima
+from brakegym.diagnosis.screening import grid, grid_minima, grid_valley
+from brakegym.effects import EFFECTS
 from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.synth import EffectRequest, synthesize
 
@@ -32,6 +33,17 @@ def test_grid_minima_are_the_points_below_every_neighbour():
     assert grid_minima("wet_pads", rules, two_axes.ravel()) == [2, 3]
     # A tie is no minimum: a flat floor has no point below every neighbour.
     assert grid_minima("rotating_mass", rules, np.ones(8)) == []
+
+
+def test_the_valley_of_a_point_is_where_descent_from_its_nearest_grid_point_ends():
+    rules = DiagnosisRules()
+    one_axis = np.array([5.0, 3.0, 4.0, 6.0, 2.0, 2.5, 7.0, 1.0])
+    (spec,) = EFFECTS["rotating_mass"].parameters
+    points = spec.grid(8)
+    # Between grid points 5 and 6, nearer 5: down to 4. At grid point 2: down to 1.
+    assert grid_valley("rotating_mass", rules, one_axis, np.array([0.8 * points[5] + 0.2 * points[6]])) == 4
+    assert grid_valley("rotating_mass", rules, one_axis, points[2:3]) == 1
+    assert grid_valley("rotating_mass", rules, one_axis, points[7:8]) == 7
 
 
 def _fitted(tmp_path, seed, effect_id, chain=None):

@@ -158,9 +158,10 @@ class Diagnoser:
         intervals are measured where it is right (``benchmarks/bench_coverage.py``). Integer
         parameters are held at ``fixed``. The fit starts at ``start`` (a value for each
         continuous parameter, by name) with each recording's nuisance from the unmodified model's
-        fit, or without ``start`` where the diagnosis starts it: at each effect's best screened
-        point (with one effect, its nuisance too; an integer parameter not in ``fixed`` takes its
-        screened value). The candidate carries the report entry of a selected model: parameters,
+        fit, or without ``start`` where the diagnosis starts it: each effect fitted alone from its
+        screening's starts as the diagnosis fits a single (an integer parameter not in ``fixed``
+        takes that fit's value), then all together from those fits' parameters and the better
+        one's nuisance. The candidate carries the report entry of a selected model: parameters,
         the 95 % intervals with the bootstrap's, residuals, held-out figures."""
         unknown = sorted(set(effect_ids) - set(EFFECTS))
         if unknown:
@@ -319,7 +320,7 @@ class Diagnoser:
         free = problem.free_parameters([effect_id], point.fixed)
         gridded = problem.gridded_start([effect_id], point.fixed, free, point.theta)
         starts = [(point.fixed, point.theta, point.nuisance), (point.fixed, point.theta, gridded)]
-        starts += [(v.fixed, v.theta, v.nuisance) for v in point.other_valleys[: rules.screen_valleys - 1]]
+        starts += [(v.fixed, v.theta, v.nuisance) for v in point.other_valleys[: max(rules.screen_valleys - 1, 0)]]
         for neighbour in integer_neighbours(effect_id, point.fixed) if vary_integer else ():
             starts.append((neighbour, point.theta, screening.starts(effect_id, neighbour, point.theta[None])[0]))
         iterations = rules.fit_iterations
@@ -327,7 +328,8 @@ class Diagnoser:
             problem.fit([effect_id], np.concatenate([theta, nuisance]), fixed=fixed, max_iterations=iterations)
             for fixed, theta, nuisance in starts
         ]
-        return min(fits, key=lambda f: weighting.chi2(f.residual))
+        chi2s = [weighting.chi2(f.residual) for f in fits]
+        return fits[min(range(len(fits)), key=lambda j: (not np.isfinite(chi2s[j]), chi2s[j]))]
 
     def _fit_pairs(self, singles: Sequence[Candidate], judge: Judge) -> list[Candidate]:
         """The pairs of the best ``pairs_from`` singles, fitted from the singles' parameters and

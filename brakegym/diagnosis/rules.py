@@ -108,7 +108,8 @@ class DiagnosisRules:
     #: iterations of a candidate's full fit
     fit_iterations: int = 8
     #: a single's full fit starts from the best points of this many valleys (local minima) of
-    #: its screening grid, best first, and keeps the fit of least chi^2
+    #: its screening grid: its best screened point's, and the best of the others (1: that one
+    #: alone); the fit of least chi^2 is kept
     screen_valleys: int = 2
 
     # -- intervals ------------------------------------------------------------------------------

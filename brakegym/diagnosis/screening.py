@@ -60,25 +60,56 @@ def grid(effect_id: str, rules: DiagnosisRules) -> list[tuple[dict[str, float], 
     return [({}, np.array(point)) for point in itertools.product(*axes)]
 
 
+def _grid_shape(effect_id: str, rules: DiagnosisRules) -> tuple[int, ...]:
+    specs = EFFECTS[effect_id].parameters
+    return (rules.grid_points(len(specs)),) * len(specs)
+
+
+def _grid_neighbours(index: tuple[int, ...], shape: tuple[int, ...]) -> list[tuple[int, ...]]:
+    """The grid points one step from ``index`` along each parameter's axis."""
+    out = []
+    for axis in range(len(shape)):
+        for offset in (-1, 1):
+            other = list(index)
+            other[axis] += offset
+            if 0 <= other[axis] < shape[axis]:
+                out.append(tuple(other))
+    return out
+
+
 def grid_minima(effect_id: str, rules: DiagnosisRules, chi2s: np.ndarray) -> list[int]:
     """The indices of the local minima of ``chi2s`` over :func:`grid`'s points of an effect
     without integer parameters (in its order): the points below every neighbour along each
     parameter's axis."""
-    specs = EFFECTS[effect_id].parameters
-    shape = (rules.grid_points(len(specs)),) * len(specs)
+    shape = _grid_shape(effect_id, rules)
     values = np.asarray(chi2s, dtype=float).reshape(shape)
-    minima = []
-    for index in np.ndindex(shape):
-        neighbours = []
-        for axis in range(len(shape)):
-            for offset in (-1, 1):
-                other = list(index)
-                other[axis] += offset
-                if 0 <= other[axis] < shape[axis]:
-                    neighbours.append(values[tuple(other)])
-        if all(values[index] < value for value in neighbours):
-            minima.append(int(np.ravel_multi_index(index, shape)))
-    return minima
+    return [
+        int(np.ravel_multi_index(index, shape))
+        for index in np.ndindex(shape)
+        if all(values[index] < values[other] for other in _grid_neighbours(index, shape))
+    ]
+
+
+def grid_valley(effect_id: str, rules: DiagnosisRules, chi2s: np.ndarray, theta: np.ndarray) -> int:
+    """The index of the grid point (in :func:`grid`'s order) where steepest descent over
+    ``chi2s`` ends from the grid point nearest ``theta`` (per parameter, on a log scale for a
+    ``log_grid`` one): the local minimum of the valley that holds ``theta``, also where
+    ``theta`` is a screening point between the grid's points."""
+    specs = EFFECTS[effect_id].parameters
+    shape = _grid_shape(effect_id, rules)
+    values = np.asarray(chi2s, dtype=float).reshape(shape)
+    index = []
+    for spec, value, points in zip(specs, theta, shape):
+        axis = spec.grid(points)
+        if spec.log_grid:
+            axis, value = np.log(axis), np.log(max(value, spec.lower))
+        index.append(int(np.argmin(np.abs(axis - value))))
+    current = tuple(index)
+    while True:
+        lowest = min(_grid_neighbours(current, shape), key=lambda other: values[other], default=current)
+        if not values[lowest] < values[current]:
+            return int(np.ravel_multi_index(current, shape))
+        current = lowest
 
 
 def integer_neighbours(effect_id: str, fixed: dict[str, float]) -> list[dict[str, float]]:
@@ -171,7 +202,8 @@ class Screening:
             extra = EFFECTS[effect_id].screening_points(evidence)
             if extra:
                 by_fixed.setdefault((), []).extend(extra)
-            valleys: list[ScreenedPoint] = []
+            valleys: dict[int, ScreenedPoint] = {}  # the grid's local minima, by grid index
+            grid_chi2s = np.zeros(0)
             for fixed_items, thetas in by_fixed.items():
                 fixed = dict(fixed_items)
                 points = np.array(thetas)
@@ -179,13 +211,17 @@ class Screening:
                 for theta, chi2, nuisance in zip(points, chi2s, nuisances):
                     if effect_id not in best or chi2 < best[effect_id].chi2:
                         best[effect_id] = ScreenedPoint(chi2, fixed, theta, nuisance)
-                if not fixed and grid(effect_id, self.rules):
-                    size = len(grid(effect_id, self.rules))
-                    for j in grid_minima(effect_id, self.rules, chi2s[:size]):
-                        valleys.append(ScreenedPoint(float(chi2s[j]), fixed, points[j], nuisances[j]))
-            if effect_id in best:
+                integer = any(spec.integer for spec in EFFECTS[effect_id].parameters)
+                if not integer and grid(effect_id, self.rules):
+                    grid_chi2s = chi2s[: len(grid(effect_id, self.rules))]
+                    valleys = {
+                        j: ScreenedPoint(float(chi2s[j]), fixed, points[j], nuisances[j])
+                        for j in grid_minima(effect_id, self.rules, grid_chi2s)
+                    }
+            if valleys:
                 point = best[effect_id]
-                others = [v for v in valleys if not np.array_equal(v.theta, point.theta)]
+                own = grid_valley(effect_id, self.rules, grid_chi2s, point.theta)
+                others = [valley for j, valley in valleys.items() if j != own]
                 point.other_valleys = tuple(sorted(others, key=lambda v: v.chi2))
         for effect_id, point in best.items():
             refined = self._refined(effect_id, point)
