@@ -18,6 +18,7 @@ residual hides in the unmodified model's residual shows there.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -194,7 +195,11 @@ class Screening:
             if effect_id in self.given_ids or (effect_ids is not None and effect_id not in effect_ids):
                 continue
             by_fixed: dict[tuple, list[np.ndarray]] = {}
-            for fixed, theta in grid(effect_id, self.rules):
+            effect_grid = grid(effect_id, self.rules)
+            # The valleys of a grid over continuous parameters alone (an integer's whole values
+            # are screened one by one, with no neighbours to compare).
+            has_valleys = bool(effect_grid) and not any(spec.integer for spec in EFFECTS[effect_id].parameters)
+            for fixed, theta in effect_grid:
                 key = tuple(sorted((name, held.get(name, value)) for name, value in fixed.items()))
                 if key in by_fixed and not theta.size:  # every whole value moved onto the held one
                     continue
@@ -211,9 +216,8 @@ class Screening:
                 for theta, chi2, nuisance in zip(points, chi2s, nuisances):
                     if effect_id not in best or chi2 < best[effect_id].chi2:
                         best[effect_id] = ScreenedPoint(chi2, fixed, theta, nuisance)
-                integer = any(spec.integer for spec in EFFECTS[effect_id].parameters)
-                if not integer and grid(effect_id, self.rules):
-                    grid_chi2s = chi2s[: len(grid(effect_id, self.rules))]
+                if has_valleys:
+                    grid_chi2s = chi2s[: len(effect_grid)]
                     valleys = {
                         j: ScreenedPoint(float(chi2s[j]), fixed, points[j], nuisances[j])
                         for j in grid_minima(effect_id, self.rules, grid_chi2s)
@@ -226,7 +230,6 @@ class Screening:
         for effect_id, point in best.items():
             refined = self._refined(effect_id, point)
             if refined is not None:
-                refined.other_valleys = point.other_valleys
                 best[effect_id] = refined
         return best
 
@@ -248,5 +251,5 @@ class Screening:
         refined = np.clip(point.theta + step, lower[: len(free)], upper[: len(free)])
         chi2, nuisance = self.screen(effect_id, point.fixed, refined[None], point.nuisance[None])
         if chi2[0] < point.chi2:
-            return ScreenedPoint(float(chi2[0]), point.fixed, refined, nuisance[0])
+            return dataclasses.replace(point, chi2=float(chi2[0]), theta=refined, nuisance=nuisance[0])
         return None
