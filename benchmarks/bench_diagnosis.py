@@ -77,8 +77,10 @@ CANDIDATE_KEYS = (
     "relevant_size",
     "heldout_gain",
     "heldout_t",
+    "heldout_p",
     "heldout_acts_on",
     "heldout_gain_per_recording",
+    "friction_level_shift",
 )
 
 

@@ -8,7 +8,8 @@
   information autocorrelated residuals hold (fits to time series count each sample as worth
   ``(1 - rho) / (1 + rho)`` of an independent one).
 - :func:`gauss_newton_covariance`: the parameter covariance of a least-squares fit.
-- :func:`paired_t`: Student's t of paired differences.
+- :func:`paired_t` and :func:`paired_t_p_value`: Student's t of paired differences, and the
+  one-sided p-value it gives on their degrees of freedom.
 """
 
 from __future__ import annotations
@@ -145,3 +146,13 @@ def paired_t(differences: np.ndarray) -> float:
     if spread == 0:
         return math.copysign(math.inf, mean) if mean else math.nan
     return mean / (spread / math.sqrt(len(differences)))
+
+
+def paired_t_p_value(differences: np.ndarray) -> float:
+    """The one-sided p-value of :func:`paired_t` (that the differences' mean is not positive),
+    from Student's t on ``n - 1`` degrees of freedom: 0 when they agree exactly and are positive,
+    nan with fewer than two. A t of 2 is p = 0.043 over 8 differences and p = 0.15 over 2."""
+    t = paired_t(differences)
+    if math.isnan(t):
+        return math.nan
+    return float(special.stdtr(len(differences) - 1, -t))

@@ -212,3 +212,40 @@ def test_rows_written_before_the_new_keys_count_as_the_diagnosis(bench, rows):
     assert numbers["confusion"]["nothing"] == {"friction_level": 1, "nothing": 1}
     assert "unexplained" not in numbers["confusion"]
     assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2}
+
+
+def test_heldout_rule_study_judges_each_candidate_by_both_rules(load_benchmark):
+    study = load_benchmark("heldout_rule")
+
+    def candidate(effect, t, recordings, delta_bic=-50.0, relevant=True):
+        return {
+            "effects": [effect],
+            "delta_bic": delta_bic,
+            "relevant_size": relevant,
+            "heldout_t": t,
+            "heldout_acts_on": [f"rec_{i}" for i in range(recordings)],
+        }
+
+    rows = [
+        {
+            "index": 3,
+            "truth": [{"id": "thermal_fade", "parameters": {}}],
+            "candidates": [
+                candidate("thermal_fade", 2.98, 4),  # p 0.029: passes both
+                candidate("adhesion_limit", 2.14, 2),  # p 0.14: passed t >= 2 alone
+                candidate("gradient", 1.5, 8),  # fails both
+                candidate("rotating_mass", 5.0, 8, delta_bic=-5.0),  # fails the BIC rule: not judged
+                candidate("wet_pads", 5.0, 1),  # one recording: not judged
+            ],
+        }
+    ]
+    judged = {c["effect"]: c for c in study.judged_singles(rows, study.DiagnosisRules())}
+    assert set(judged) == {"thermal_fade", "adhesion_limit", "gradient"}
+    assert judged["thermal_fade"]["drawn"] and not judged["adhesion_limit"]["drawn"]
+    # Student's t on 3 and on 1 degrees of freedom, in closed form.
+    u = 2.98 / np.sqrt(3.0)
+    assert judged["thermal_fade"]["p"] == pytest.approx(0.5 - (u / (1 + u * u) + np.arctan(u)) / np.pi)
+    assert judged["adhesion_limit"]["p"] == pytest.approx(0.5 - np.arctan(2.14) / np.pi)
+    assert (judged["thermal_fade"]["former"], judged["thermal_fade"]["now"]) == (True, True)
+    assert (judged["adhesion_limit"]["former"], judged["adhesion_limit"]["now"]) == (True, False)
+    assert (judged["gradient"]["former"], judged["gradient"]["now"]) == (False, False)

@@ -165,7 +165,8 @@ def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tm
     assert fallback["description"]["axis"] == "speed_mps" and fallback["description"]["form"] == "quadratic"
     (tried,) = [entry for entry in fallback["signatures"] if entry["effect"] == "running_resistance"]
     assert tried["signature"] == "force_quadratic_in_speed" and tried["verdict"] == "selected"
-    assert tried["heldout_t"] >= rules.heldout_min_t and tried["delta_bic"] <= rules.select_delta_bic
+    assert tried["heldout_t"] >= rules.heldout_min_t and tried["heldout_p"] <= rules.heldout_max_p
+    assert tried["delta_bic"] <= rules.select_delta_bic
     fitted = report["parameters"]
     for speed in (20.0, 40.0):
         force = truth["A_N"] + truth["B_N_per_mps"] * speed + truth["C_N_per_mps2"] * speed**2
@@ -197,6 +198,7 @@ def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
         assert (
             entry["heldout_t"] is None
             or entry["heldout_t"] < DiagnosisRules().heldout_min_t
+            or entry["heldout_p"] > DiagnosisRules().heldout_max_p
             or not entry["relevant_size"]
         ), entry
     # Where it lives: the recordings of the segments beyond noise.

@@ -6,12 +6,14 @@ A candidate is selected when
 - it lowers the effective-sample BIC (chi^2 counted with the effective sample weights of
   :mod:`.weighting`, plus ``log(n_eff)`` per parameter) by at least ``select_delta_bic``,
 - it lowers the error on recordings held out of the fit (:mod:`.heldout`) consistently over the
-  recordings it acts on: a paired t of at least ``heldout_min_t`` of each recording's share of
-  held-out error removed, over the recordings whose held-out prediction it moves by
-  ``heldout_moves_sigma`` somewhere or whose held-out error it changes by ``heldout_acts_share``,
-  at least ``heldout_min_recordings`` of them (a recording it leaves alone is no evidence either
-  way, and the gains of those it acts on differ by orders of magnitude: a thermal fade that only
-  the hottest stops reach), and
+  recordings it acts on: the paired t of each recording's share of held-out error removed reaches
+  ``heldout_min_t`` and its one-sided p-value is at most ``heldout_max_p`` (Student's t on the
+  recordings less one degrees of freedom, so that two recordings must agree far more closely than
+  eight), over the
+  recordings whose held-out prediction it moves by ``heldout_moves_sigma`` somewhere or whose
+  held-out error it changes by ``heldout_acts_share``, at least ``heldout_min_recordings`` of them
+  (a recording it leaves alone is no evidence either way, and the gains of those it acts on
+  differ by orders of magnitude: a thermal fade that only the hottest stops reach), and
 - its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`).
 
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
@@ -22,12 +24,13 @@ include those of the forward step (:mod:`.pipeline`): the selected single with t
 screen best on top of it. A pair that does not replace the single, but whose second effect is
 relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
 and that passes one of the two rules against the single (a BIC lower by ``select_delta_bic``, or
-the held-out t) is named indistinguishable from the single (``single_or_pair``), with the
+the held-out rule) is named indistinguishable from the single (``single_or_pair``), with the
 measurement that would separate the two effects.
 
 Another passing single is named indistinguishable from the selected one when its held-out error
 is within ``indistinguishable_heldout`` and either its BIC is within ``similar_bic`` or the
-recordings do not tell the two held-out errors apart (paired t below ``heldout_min_t``): in large
+recordings do not tell the two held-out errors apart (their paired differences fail the held-out
+rule): in large
 data two confounders' BICs can differ by hundreds while neither predicts a held-out recording
 better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
 recordings and removes ``unconfirmed_min_gain`` of their held-out error is reported unconfirmed (a
@@ -57,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import EFFECTS, Evidence, FrictionLevel
-from ..statistics import paired_t
+from ..statistics import paired_t, paired_t_p_value
 from .fitting import FitProblem, FitResult
 from .heldout import HeldOut, held_out
 from .rules import DiagnosisRules
@@ -210,23 +213,30 @@ class Judge:
         adds_level = FrictionLevel.id in candidate.effect_ids and FrictionLevel.id not in reference_ids
         if adds_level:
             acts_on[:] = True
-            bic_rule, t = self._friction_level_rules(candidate, d)
+            bic_rule, gains = self._friction_level_rules(candidate, d)
         else:
             bic_rule = candidate.delta_bic - reference_bic < rules.select_delta_bic
-            t = paired_t(shares[acts_on]) if acts_on.sum() >= rules.heldout_min_recordings else math.nan
+            gains = shares[acts_on] if acts_on.sum() >= rules.heldout_min_recordings else np.zeros(0)
+        t, p = paired_t(gains), paired_t_p_value(gains)
         candidate.acting_gain = float(np.mean(shares[acts_on])) if acts_on.any() else math.nan
         candidate.report["heldout_gain"] = round(gain, 4)
         candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
+        candidate.report["heldout_p"] = float(f"{p:.3g}") if math.isfinite(p) else None
         candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
         candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
         candidate.passes_bic_rule = bool(bic_rule)
-        candidate.passes_heldout_rule = bool(t >= rules.heldout_min_t)
+        candidate.passes_heldout_rule = self._consistent(t, p)
         return candidate.relevant and candidate.passes_bic_rule and candidate.passes_heldout_rule
 
-    def _friction_level_rules(self, candidate: Candidate, heldout_removed: np.ndarray) -> tuple[bool, float]:
-        """The two rules for a friction level added to the reference, its shared-shift test (in
-        place of the BIC rule; recorded in the report as ``friction_level_shift``) and the paired
-        t of the effective held-out error removed from each recording, over every recording.
+    def _consistent(self, t: float, p: float) -> bool:
+        """The held-out rule on a paired t and its p-value (nan: too few recordings)."""
+        return bool(t >= self.rules.heldout_min_t and p <= self.rules.heldout_max_p)
+
+    def _friction_level_rules(self, candidate: Candidate, heldout_removed: np.ndarray) -> tuple[bool, np.ndarray]:
+        """The two rules for a friction level added to the reference: whether it passes its
+        shared-shift test (in place of the BIC rule; recorded in the report as
+        ``friction_level_shift``), and the gains of the held-out rule, the effective held-out
+        error removed from each recording, over every recording.
 
         The held-out error a level removes lies in each recording's friction-factor row, whose
         prior weighs the same in every recording; shares of each recording's whole error would
@@ -234,7 +244,7 @@ class Judge:
         channels) that have nothing to do with the level."""
         shift = friction_level_shift(self.problem, candidate.fit)
         candidate.report["friction_level_shift"] = shift.as_dict()
-        return abs(shift.z) >= self.rules.friction_level_min_z, paired_t(heldout_removed)
+        return abs(shift.z) >= self.rules.friction_level_min_z, heldout_removed
 
     def best_single(self, singles: Sequence[Candidate]) -> Candidate | None:
         """The passing single with the lowest held-out error (None: none passes); marks each
@@ -276,8 +286,8 @@ class Judge:
         the data as well as the single, by one of the two rules but not both: relevant, a held-out
         error within ``indistinguishable_heldout`` of the single's or lower, and either the BIC
         rule against the single (a BIC lower by ``select_delta_bic``, or for an added friction
-        level its shared-shift test) or a held-out t of ``heldout_min_t`` over the recordings the
-        second effect acts on."""
+        level its shared-shift test) or the held-out rule over the recordings the second effect
+        acts on."""
         rules = self.rules
         single_sse = float(np.sum(single.heldout.sse))
         return (
@@ -301,7 +311,8 @@ class Judge:
             close = float(np.sum(other.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * best_sse
             similar_bic = abs(other.delta_bic - selected.delta_bic) < rules.similar_bic
             difference = (other.heldout.sse - selected.heldout.sse) / np.maximum(self.base_sse, 1e-12)
-            if close and (similar_bic or not paired_t(difference) >= rules.heldout_min_t):
+            tells_apart = self._consistent(paired_t(difference), paired_t_p_value(difference))
+            if close and (similar_bic or not tells_apart):
                 first, second = selected.effect_ids[0], other.effect_ids[0]
                 pairs.append([first, second])
                 correlations[f"{first} / {second}"] = round(

@@ -155,6 +155,7 @@ def _single_or_pair_entry(single: Candidate, pair: Candidate) -> dict[str, Any]:
         "delta_bic_over_single": round(pair.delta_bic - single.delta_bic, 1),
         "heldout_gain_over_single": pair.report.get("heldout_gain"),
         "heldout_t_over_single": pair.report.get("heldout_t"),
+        "heldout_p_over_single": pair.report.get("heldout_p"),
         "separating_measurement": separating_measurement(first, second),
     }
 

@@ -36,8 +36,13 @@ class DiagnosisRules:
     #: candidates indistinguishable
     similar_bic: float = 100.0
     #: the paired t over recordings of the share of held-out error a candidate removes must reach
-    #: this, on the recordings it acts on
+    #: this, on the recordings it acts on ...
     heldout_min_t: float = 2.0
+    #: ... and its one-sided p-value (Student's t on the recordings acted on less one degrees of
+    #: freedom) must be at most this. Over 7-8 recordings t = 2 is p = 0.04-0.05; over 2-5 the
+    #: t distribution's tails are wider (t = 2 is p = 0.15 over 2, 0.07 over 4), and a t of 2 alone
+    #: would accept a consistency that chance gives them
+    heldout_max_p: float = 0.05
     #: a recording counts as acted on when the candidate moves its held-out prediction this many
     #: noise sigmas somewhere ...
     heldout_moves_sigma: float = 1.0

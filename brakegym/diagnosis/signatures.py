@@ -230,6 +230,7 @@ def _try_entry(attempt: FallbackTry, selected: Candidate | None) -> dict[str, An
         "parameters": {name: round(value, 5) for name, value in candidate.fit.parameters.items()},
         "delta_bic": round(candidate.delta_bic, 1),
         "heldout_t": candidate.report.get("heldout_t"),
+        "heldout_p": candidate.report.get("heldout_p"),
         "relevant_size": candidate.relevant,
         "replaced_screened_fit": attempt.replaced_screened_fit,
         "verdict": verdict,

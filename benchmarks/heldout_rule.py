@@ -1,0 +1,89 @@
+"""The held-out rule on its degrees of freedom, read off benchmark rows (not a test).
+
+For every single candidate of the rows that ``bench_diagnosis.py --json`` wrote, that passes
+the other rules (relevant in size, and a BIC lower by ``select_delta_bic``; a friction level's
+shared-shift test instead where the row records it) and acts on at least
+``heldout_min_recordings`` recordings: whether its held-out t passes the rule of brakegym up to
+0.2 (``heldout_min_t`` whatever the number of recordings) and the rule now (that t, and a
+one-sided p-value of Student's t on the recordings acted on less one of at most
+``heldout_max_p``), and whether the effect is in the set (drawn). Printed: the counts of true and false candidates each rule passes, and every
+candidate the two rules judge apart. The p-value is computed from the row's t and its recordings,
+so rows written before the rule changed can be read.
+
+Usage: ``python benchmarks/heldout_rule.py ROWS.json [ROWS.json ...]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from scipy import special
+
+from brakegym.diagnosis import DiagnosisRules
+
+def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
+    """The single candidates of ``rows`` that pass every rule but the held-out one."""
+    out = []
+    for row in rows:
+        drawn = {effect["id"] for effect in row["truth"]}
+        for candidate in row.get("candidates") or []:
+            if len(candidate["effects"]) != 1 or candidate.get("heldout_t") is None:
+                continue
+            (effect_id,) = candidate["effects"]
+            shift = candidate.get("friction_level_shift")
+            if effect_id == "friction_level" and shift is not None:
+                other_rules = abs(shift["z"]) >= rules.friction_level_min_z
+            elif effect_id == "friction_level":
+                other_rules = True  # rows before the shift was recorded: the held-out rule alone
+            else:
+                other_rules = candidate["delta_bic"] <= rules.select_delta_bic
+            recordings = len(candidate["heldout_acts_on"])
+            if not (candidate["relevant_size"] and other_rules and recordings >= rules.heldout_min_recordings):
+                continue
+            t = float(candidate["heldout_t"])
+            p = float(special.stdtr(recordings - 1, -t))
+            out.append(
+                {
+                    "set": f"{row.get('file', '')}#{row['index']}",
+                    "effect": effect_id,
+                    "drawn": effect_id in drawn,
+                    "recordings": recordings,
+                    "t": t,
+                    "p": p,
+                    "former": t >= rules.heldout_min_t,
+                    "now": t >= rules.heldout_min_t and p <= rules.heldout_max_p,
+                }
+            )
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("rows", nargs="+", metavar="ROWS.json")
+    args = parser.parse_args()
+    rules = DiagnosisRules()
+    rows = []
+    for path in args.rows:
+        for row in json.loads(Path(path).read_text()):
+            rows.append({**row, "file": Path(path).name})
+    singles = judged_singles(rows, rules)
+    print(f"{len(rows)} sets; {len(singles)} single candidates passing every rule but the held-out one")
+    former = f"t >= {rules.heldout_min_t:g}"
+    for label, key in ((former, "former"), (f"{former} and p <= {rules.heldout_max_p:g}", "now")):
+        true = sum(1 for c in singles if c[key] and c["drawn"])
+        false = sum(1 for c in singles if c[key] and not c["drawn"])
+        print(f"  {label}: passes {true} drawn, {false} not drawn")
+    print("judged apart by the two rules:")
+    for c in sorted((c for c in singles if c["former"] != c["now"]), key=lambda c: c["p"]):
+        verdict = "passes now only" if c["now"] else f"passed {former} only"
+        drawn = "drawn" if c["drawn"] else "NOT drawn"
+        print(f"  {c['set']}: {c['effect']} ({drawn}) t {c['t']:.2f} over {c['recordings']}, p {c['p']:.3f}: {verdict}")
+    passing_true = [c["p"] for c in singles if c["former"] and c["drawn"]]
+    if passing_true:
+        print(f"largest p of a drawn effect passing {former}: {max(passing_true):.4f}")
+
+
+if __name__ == "__main__":
+    main()
