@@ -6,9 +6,10 @@ shared-shift test instead where the row records it) and acts on at least
 ``heldout_min_recordings`` recordings: whether its held-out t passes the rule of brakegym up to
 0.2 (``heldout_min_t`` whatever the number of recordings) and the rule now (that t, and a
 one-sided p-value of Student's t on the recordings acted on less one of at most
-``heldout_max_p``), and whether the effect is in the set (drawn). Printed: the counts of true and false candidates each rule passes, and every
-candidate the two rules judge apart. The p-value is computed from the row's t and its recordings,
-so rows written before the rule changed can be read.
+``heldout_max_p``), and whether the effect is in the set (drawn). Printed: the counts of drawn
+and not drawn candidates each rule passes, and every candidate the two rules judge apart. The
+p-value is computed from the row's t and its recordings, so rows written before the rule changed
+can be read.
 
 Usage: ``python benchmarks/heldout_rule.py ROWS.json [ROWS.json ...]``
 """
@@ -22,6 +23,7 @@ from pathlib import Path
 from scipy import special
 
 from brakegym.diagnosis import DiagnosisRules
+
 
 def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
     """The single candidates of ``rows`` that pass every rule but the held-out one."""
