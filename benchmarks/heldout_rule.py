@@ -7,7 +7,7 @@ shared-shift test instead where the row records it) and acts on at least
 0.2 (``heldout_min_t`` whatever the number of recordings) and the rule now (that t, and a
 one-sided p-value of Student's t on the recordings acted on less one of at most
 ``heldout_max_p``), and whether the effect is in the set (drawn). Printed: the counts of drawn
-and not drawn candidates each rule passes, and every candidate the two rules judge apart. The
+and not drawn candidates each rule passes, and every candidate the former rule alone passes. The
 p-value is computed from the row's t and its recordings, so rows written before the rule changed
 can be read.
 
@@ -20,9 +20,8 @@ import argparse
 import json
 from pathlib import Path
 
-from scipy import special
-
 from brakegym.diagnosis import DiagnosisRules
+from brakegym.statistics import paired_t_tail
 
 
 def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
@@ -45,7 +44,7 @@ def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
             if not (candidate["relevant_size"] and other_rules and recordings >= rules.heldout_min_recordings):
                 continue
             t = float(candidate["heldout_t"])
-            p = float(special.stdtr(recordings - 1, -t))
+            p = paired_t_tail(t, recordings)
             out.append(
                 {
                     "set": f"{row.get('file', '')}#{row['index']}",
@@ -77,11 +76,11 @@ def main() -> None:
         true = sum(1 for c in singles if c[key] and c["drawn"])
         false = sum(1 for c in singles if c[key] and not c["drawn"])
         print(f"  {label}: passes {true} drawn, {false} not drawn")
-    print("judged apart by the two rules:")
-    for c in sorted((c for c in singles if c["former"] != c["now"]), key=lambda c: c["p"]):
-        verdict = "passes now only" if c["now"] else f"passed {former} only"
+    # The rule now asks the former's t and more, so only the former can pass alone.
+    print(f"passed {former} alone:")
+    for c in sorted((c for c in singles if c["former"] and not c["now"]), key=lambda c: c["p"]):
         drawn = "drawn" if c["drawn"] else "NOT drawn"
-        print(f"  {c['set']}: {c['effect']} ({drawn}) t {c['t']:.2f} over {c['recordings']}, p {c['p']:.3f}: {verdict}")
+        print(f"  {c['set']}: {c['effect']} ({drawn}) t {c['t']:.2f} over {c['recordings']}, p {c['p']:.3f}")
     passing_true = [c["p"] for c in singles if c["former"] and c["drawn"]]
     if passing_true:
         print(f"largest p of a drawn effect passing {former}: {max(passing_true):.4f}")

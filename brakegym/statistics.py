@@ -8,8 +8,8 @@
   information autocorrelated residuals hold (fits to time series count each sample as worth
   ``(1 - rho) / (1 + rho)`` of an independent one).
 - :func:`gauss_newton_covariance`: the parameter covariance of a least-squares fit.
-- :func:`paired_t` and :func:`paired_t_p_value`: Student's t of paired differences, and the
-  one-sided p-value it gives on their degrees of freedom.
+- :func:`paired_t`, :func:`paired_t_p_value` and :func:`paired_t_tail`: Student's t of paired
+  differences, and the one-sided p-value it gives on their degrees of freedom.
 """
 
 from __future__ import annotations
@@ -149,10 +149,15 @@ def paired_t(differences: np.ndarray) -> float:
 
 
 def paired_t_p_value(differences: np.ndarray) -> float:
-    """The one-sided p-value of :func:`paired_t` (that the differences' mean is not positive),
-    from Student's t on ``n - 1`` degrees of freedom: 0 when they agree exactly and are positive,
-    nan with fewer than two. A t of 2 is p = 0.043 over 8 differences and p = 0.15 over 2."""
-    t = paired_t(differences)
-    if math.isnan(t):
+    """The one-sided p-value of :func:`paired_t` (that the differences' mean is not positive):
+    :func:`paired_t_tail` of their t; nan with fewer than two."""
+    return paired_t_tail(paired_t(differences), len(differences))
+
+
+def paired_t_tail(t: float, n: int) -> float:
+    """The one-sided p-value of a paired t over ``n`` differences, from Student's t on ``n - 1``
+    degrees of freedom: 0 at t = inf, nan for a nan t or fewer than two. A t of 2 is p = 0.043
+    over 8 differences and p = 0.15 over 2."""
+    if math.isnan(t) or n < 2:
         return math.nan
-    return float(special.stdtr(len(differences) - 1, -t))
+    return float(special.stdtr(n - 1, -t))

@@ -9,11 +9,11 @@ A candidate is selected when
   recordings it acts on: the paired t of each recording's share of held-out error removed reaches
   ``heldout_min_t`` and its one-sided p-value is at most ``heldout_max_p`` (Student's t on the
   recordings less one degrees of freedom, so that two recordings must agree far more closely than
-  eight), over the
-  recordings whose held-out prediction it moves by ``heldout_moves_sigma`` somewhere or whose
-  held-out error it changes by ``heldout_acts_share``, at least ``heldout_min_recordings`` of them
-  (a recording it leaves alone is no evidence either way, and the gains of those it acts on
-  differ by orders of magnitude: a thermal fade that only the hottest stops reach), and
+  eight), over the recordings whose held-out prediction it moves by ``heldout_moves_sigma``
+  somewhere or whose held-out error it changes by ``heldout_acts_share``, at least
+  ``heldout_min_recordings`` of them (a recording it leaves alone is no evidence either way, and
+  the gains of those it acts on differ by orders of magnitude: a thermal fade that only the
+  hottest stops reach), and
 - its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`).
 
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
@@ -30,9 +30,8 @@ measurement that would separate the two effects.
 Another passing single is named indistinguishable from the selected one when its held-out error
 is within ``indistinguishable_heldout`` and either its BIC is within ``similar_bic`` or the
 recordings do not tell the two held-out errors apart (their paired differences fail the held-out
-rule): in large
-data two confounders' BICs can differ by hundreds while neither predicts a held-out recording
-better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
+rule): in large data two confounders' BICs can differ by hundreds while neither predicts a
+held-out recording better. A relevant single with a BIC gain that acts on at most ``unconfirmed_max_recordings``
 recordings and removes ``unconfirmed_min_gain`` of their held-out error is reported unconfirmed (a
 t over one or two recordings is no evidence of consistency).
 
