@@ -68,7 +68,16 @@ def traces_of(decel_of_speed_and_mass, noise_mps2=0.0, seed=0, coasting_s=0.0, b
         recording = SimpleNamespace(mass_kg=mass, stem=f"r{len(traces)}")
         traces.append(
             ResidualTrace(
-                recording, time, np.zeros_like(time), None, decel, None, axes, moving, moving & (time >= coasting_s)
+                recording,
+                time,
+                np.zeros_like(time),
+                None,
+                decel,
+                np.full_like(time, np.nan),  # the signatures read residuals only
+                None,
+                axes,
+                moving,
+                moving & (time >= coasting_s),
             )
         )
     return traces

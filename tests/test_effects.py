@@ -226,6 +226,7 @@ def test_every_effect_has_its_public_parameters_and_a_no_effect_value():
         "speed_sensor_scale": ["scale"],
         "temperature_sensor_lag": ["tau_s"],
         "gradient_section": ["section_start_m", "section_length_m", "section_gradient_permil"],
+        "adhesion_section": ["patch_start_m", "patch_length_m", "patch_adhesion"],
     }
     assert {k: [p.name for p in cls.parameters] for k, cls in EFFECTS.items()} == expected
     nominal = _initial_brake_force_N([])

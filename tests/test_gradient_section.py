@@ -179,9 +179,12 @@ def test_the_residual_along_position_locates_the_section(section_set):
     assert step.end_m == pytest.approx(end, abs=2 * bin_m)
     assert 0.5 * SECTION["section_gradient_permil"] < step.gradient_permil < 1.1 * SECTION["section_gradient_permil"]
     assert step.explained_share > DiagnosisRules().position_step_min_share
-    start, length, permil = step.section_start(TRAIN_LENGTH_M)
+    start, length = step.stretch().section(TRAIN_LENGTH_M)
     assert start == pytest.approx(step.start_m - TRAIN_LENGTH_M / 2)
     assert length == pytest.approx(step.end_m - step.start_m)
+    evidence = Evidence(1.0, 100.0, np.ones(4), VEHICLE.running_resistance, stretches=(step.stretch(),))
+    (point,) = GradientSection.screening_points(evidence)
+    np.testing.assert_allclose(point, [start, length, step.gradient_permil])
 
 
 def test_an_effect_free_set_shows_no_step_along_position(tmp_path_factory):

@@ -87,6 +87,7 @@ class ResidualTrace:
     speed: np.ndarray  # measured - simulated, nan where missing
     decel: np.ndarray | None  # of the decel channel
     kinematic_decel: np.ndarray  # -d/dt of the speed residual
+    measured_decel: np.ndarray  # -d/dt of the measured speed: the deceleration the speed signal shows
     temperature: np.ndarray | None
     axes: dict[str, np.ndarray]
     moving: np.ndarray
@@ -128,7 +129,16 @@ def residual_trace(replayed: Replay) -> ResidualTrace:
     }
     moving = _moving(recording)
     return ResidualTrace(
-        recording, time, speed, decel, kinematic, temperature, axes, moving, moving & (pressure > BRAKING_PRESSURE_BAR)
+        recording,
+        time,
+        speed,
+        decel,
+        kinematic,
+        _kinematic_decel(time, recording.speed_mps),
+        temperature,
+        axes,
+        moving,
+        moving & (pressure > BRAKING_PRESSURE_BAR),
     )
 
 

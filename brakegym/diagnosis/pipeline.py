@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence, FrictionLevel, GradientSection
+from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -137,7 +137,7 @@ class Diagnoser:
             friction_factors=baseline.x[2 * self.problem.n :],
             nominal_resistance=self.recordings[0].vehicle.running_resistance,
             run_distance_m=max(float(np.nanmax(r.states["true_position_m"])) for r in baseline.replays),
-            position_steps=(position_step.section_start(GradientSection.TRAIN_LENGTH_M),) if located else (),
+            stretches=(position_step.stretch(),) if located else (),
         )
 
     def unmodified_fit(self) -> FitResult:
@@ -226,7 +226,7 @@ class Diagnoser:
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
         traces = self._baseline_residual(weighting, baseline).traces
-        position_step = find_position_step(traces, rules.position_step_bin_m, GradientSection.TRAIN_LENGTH_M)
+        position_step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
         evidence = self._evidence(baseline, position_step)
         judge = Judge(problem, weighting, rules, evidence, baseline)
         screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)

@@ -15,8 +15,10 @@ least ``min_length_m`` long, whose indicator explains the most of the residual's
 squares with one offset per recording (exhaustively: cumulative sums make each stretch a few
 operations). A stretch that covers every position is no step; a gradient there is the constant
 gradient's. The step found is a start for the fit of a
-:class:`~brakegym.effects.GradientSection`, screened beside any grid (its
-:meth:`~brakegym.effects.Effect.screening_points`); whether a section is in the data is decided as
+:class:`~brakegym.effects.GradientSection`, and where the train slows less on the stretch, for a
+stretch of low adhesion (:class:`~brakegym.effects.AdhesionSection`, which also needs the hardest
+deceleration measured on it), screened beside any grid (their
+:meth:`~brakegym.effects.Effect.screening_points`); whether either is in the data is decided as
 for any effect, by the rules of :mod:`.judging`.
 """
 
@@ -28,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ..effects import LocatedStretch
 from ..units import STANDARD_GRAVITY_MPS2
 from .locate import ResidualTrace
 
@@ -44,18 +47,18 @@ class PositionStep:
     decel_step_mps2: float  # on the stretch minus off it (positive: the train slows more there)
     explained_share: float  # of the residual's variance about each recording's own mean
     recordings: int  # how many recordings have braking samples on the stretch
+    #: the 90th percentile of the deceleration the speed signals show on the stretch while braking
+    #: (a stretch of low adhesion holds the hardest stops at its plateau)
+    peak_decel_mps2: float = float("nan")
 
     @property
     def gradient_permil(self) -> float:
         """The gradient whose force leaves this step (its deceleration over g, x 1000)."""
         return 1000.0 * self.decel_step_mps2 / STANDARD_GRAVITY_MPS2
 
-    def section_start(self, train_length_m: float) -> tuple[float, float, float]:
-        """(start_m, length_m, gradient_permil) of the section that leaves this step: its force
-        ramps over one train length from the section's start, so the step's edges lie half a train
-        length beyond the section's ends."""
-        start = max(self.start_m - 0.5 * train_length_m, 0.0)
-        return start, self.end_m - 0.5 * train_length_m - start, self.gradient_permil
+    def stretch(self) -> LocatedStretch:
+        """The step as the effects read it (:attr:`brakegym.effects.Evidence.stretches`)."""
+        return LocatedStretch(self.start_m, self.end_m, self.decel_step_mps2, self.peak_decel_mps2)
 
     def report_entry(self) -> dict[str, Any]:
         return {
@@ -65,6 +68,7 @@ class PositionStep:
             "gradient_permil": round(self.gradient_permil, 3),
             "explained_share": round(self.explained_share, 4),
             "recordings": self.recordings,
+            "peak_decel_mps2": round(self.peak_decel_mps2, 4) if np.isfinite(self.peak_decel_mps2) else None,
         }
 
 
@@ -116,10 +120,24 @@ def find_position_step(traces: Sequence[ResidualTrace], bin_m: float, min_length
     best = int(np.argmax(gain))
     if gain[best] <= 0.0:
         return None
+    start_m, end_m = float(first[best] * bin_m), float(last[best] * bin_m)
     return PositionStep(
-        start_m=float(first[best] * bin_m),
-        end_m=float(last[best] * bin_m),
+        start_m=start_m,
+        end_m=end_m,
         decel_step_mps2=float(covariance[best] / variance[best]),
         explained_share=float(gain[best] / total_ss),
         recordings=int(np.sum(inside[:, best] > 0)),
+        peak_decel_mps2=_peak_decel_on(traces, start_m, end_m),
     )
+
+
+def _peak_decel_on(traces: Sequence[ResidualTrace], start_m: float, end_m: float) -> float:
+    """The 90th percentile of the measured deceleration while braking from ``start_m`` to
+    ``end_m``; nan with no such sample."""
+    on_stretch = []
+    for trace in traces:
+        position = trace.axes["position_m"]
+        rows = trace.braking & (position >= start_m) & (position < end_m) & ~np.isnan(trace.measured_decel)
+        on_stretch.append(trace.measured_decel[rows])
+    decel = np.concatenate(on_stretch)
+    return float(np.percentile(decel, 90)) if decel.size else float("nan")

@@ -22,6 +22,7 @@ can simulate several parameter sets in one batch).
 | ``speed_sensor_scale`` | ``scale`` | measured speed and odometry = scale x true |
 | ``temperature_sensor_lag`` | ``tau_s`` | first-order lag of the measured disc temperature |
 | ``gradient_section`` | ``section_start_m``, ``section_length_m``, ``section_gradient_permil`` | m g p/1000 on a part |
+| ``adhesion_section`` | ``patch_start_m``, ``patch_length_m``, ``patch_adhesion`` | the adhesion cap on a part |
 
 An effect set is loadable from YAML (``configs/effects/<name>.yaml``, schema
 :class:`brakegym.config.EffectSet`) with :func:`load_effects`. Modules: :mod:`.base` (parameters,
@@ -38,8 +39,8 @@ import numpy as np
 
 from .. import config as cfg
 from ..simulator import BatchConditions, Plant
-from .base import Effect, EffectedModel, Evidence, ParameterSpec, SensorModel, Value
-from .friction import AdhesionLimit, FrictionLevel, ThermalFade, WetPads
+from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, LocatedStretch, ParameterSpec, SensorModel, Value
+from .friction import AdhesionLimit, AdhesionSection, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
 from .track import Gradient, GradientSection, RunningResistanceEffect
 from .vehicle import BrakeUnitFailure, RotatingMass
@@ -58,6 +59,7 @@ EFFECTS: dict[str, type[Effect]] = {
         SpeedSensorScale,
         TemperatureSensorLag,
         GradientSection,
+        AdhesionSection,
     )
 }
 
@@ -130,7 +132,9 @@ def load_effects(name_or_path: str | Path) -> list[Effect]:
 __all__ = [
     "DEFAULT_SEPARATION",
     "EFFECTS",
+    "TRAIN_LENGTH_M",
     "AdhesionLimit",
+    "AdhesionSection",
     "BrakeUnitFailure",
     "Effect",
     "EffectedModel",
@@ -138,6 +142,7 @@ __all__ = [
     "FrictionLevel",
     "Gradient",
     "GradientSection",
+    "LocatedStretch",
     "ParameterSpec",
     "RotatingMass",
     "RunningResistanceEffect",

@@ -81,6 +81,30 @@ class ParameterSpec:
         return self.lower + midpoints * (self.upper - self.lower)
 
 
+#: ASSUMED: a two-car unit of the emu_8axle's eight axles is about 50 m long (the vehicle configs
+#: carry no length). Effects on part of the line spread the train over it.
+TRAIN_LENGTH_M = 50.0
+
+
+@dataclass(frozen=True)
+class LocatedStretch:
+    """A stretch of the line where the unmodified model's residual deceleration steps, as the
+    diagnosis locates it (:mod:`brakegym.diagnosis.position_steps`), in metres travelled from each
+    recording's first sample."""
+
+    start_m: float
+    end_m: float
+    decel_step_mps2: float  # on the stretch minus off it (positive: the train slows more there)
+    peak_decel_mps2: float  # the measured deceleration of the hardest braking on it
+
+    def section(self, train_length_m: float) -> tuple[float, float]:
+        """(start_m, length_m) of a section whose effect ramps in over one train length from its
+        start and out from its end (the train's weight or axles spread over ``train_length_m``):
+        the step's edges lie half a train length beyond the section's ends."""
+        start = max(self.start_m - 0.5 * train_length_m, 0.0)
+        return start, self.end_m - 0.5 * train_length_m - start
+
+
 @dataclass(frozen=True)
 class Evidence:
     """What a set of recordings shows of itself, as the diagnosis tells it to the effects.
@@ -94,9 +118,16 @@ class Evidence:
     nominal_resistance: cfg.RunningResistance  # the vehicle's running resistance and its scatter
     peak_friction_surface_C: float = float("inf")  # the hottest friction surface of a candidate's fitted replays
     run_distance_m: float = float("inf")  # the longest distance a recording covers from its first sample
-    #: where the unmodified model's residual locates a force that acts on part of the line, as the
-    #: sections (start_m, length_m, gradient_permil) whose force would leave its steps
-    position_steps: tuple[tuple[float, float, float], ...] = ()
+    #: where the unmodified model's residual locates something that acts on part of the line
+    stretches: tuple[LocatedStretch, ...] = ()
+
+
+def on_part_of_the_run(start_m: float, end_m: float, evidence: Evidence) -> bool:
+    """Whether a section from ``start_m`` to ``end_m`` lies on the recordings' run and begins or
+    ends inside it by a train length: one that covers every recording from end to end acts on the
+    whole line, and the effect of the whole line says so."""
+    inside = start_m >= TRAIN_LENGTH_M or end_m <= evidence.run_distance_m - TRAIN_LENGTH_M
+    return inside and start_m < evidence.run_distance_m
 
 
 @dataclass

@@ -1,4 +1,5 @@
-"""Effects on the friction of the pads: a level, wet pads, fade, and the adhesion limit."""
+"""Effects on the friction of the pads: a level, wet pads, fade, and the adhesion limit on the
+whole line or on a stretch of it."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import numpy as np
 
 from .. import config as cfg
 from ..units import STANDARD_GRAVITY_MPS2, ZERO_CELSIUS_K
-from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
-from .hooks import AdhesionCap, ConstantFrictionFactor, FadeFactor, WetPadFactor
+from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, ParameterSpec, on_part_of_the_run, per_train
+from .hooks import AdhesionCap, AdhesionSectionCap, ConstantFrictionFactor, FadeFactor, WetPadFactor
 
 
 class FrictionLevel(Effect):
@@ -190,3 +191,71 @@ class AdhesionLimit(Effect):
         model.friction_modifiers.append(
             AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)
         )
+
+
+class AdhesionSection(Effect):
+    """A stretch of low adhesion (leaves, grease, wet rail on part of the line): from
+    ``patch_start_m`` for ``patch_length_m`` each axle's brake force is capped at ``patch_adhesion``
+    x axle load x g, as :class:`AdhesionLimit` caps it on the whole line; in metres travelled from
+    each recording's first sample, as :class:`~.track.GradientSection` places a section.
+
+    The axles are spread over the train's length (:class:`~.hooks.AdhesionSectionCap`), so the
+    cap takes hold axle by axle as the train runs onto the stretch. It acts only on applications
+    that brake harder than the stretch allows, and the accelerometer sees it (a gradient section
+    acts on every application, and the accelerometer does not see it). Screened where the residual
+    along position steps down (the train slows less on the stretch), as a section is.
+    """
+
+    id = "adhesion_section"
+    parameters = (
+        ParameterSpec(
+            "patch_start_m", "m", 0.0, 2500.0, 0.0, ((100.0, 400.0),), description="where the stretch begins"
+        ),
+        ParameterSpec("patch_length_m", "m", 50.0, 2500.0, 0.0, ((150.0, 500.0),), description="how long it is"),
+        ParameterSpec("patch_adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),)),
+    )
+    order = AdhesionLimit.order + 1  # it sees the whole line's cap, if any
+    TRAIN_LENGTH_M = TRAIN_LENGTH_M
+    # Start points as shares of the hardest measured deceleration on the stretch / g: the cap's
+    # plateau there, which the rotating masses' inertia and running resistance move a little.
+    PLATEAU_SHARES = (0.85, 0.9, 0.95, 1.0, 1.05, 1.1)
+    grid_screened = False
+    confirming_measurement = "more stops braked as hard as {where} across the stretch"
+    separating_measurements = {
+        "adhesion_limit": "stops braked as hard on other parts of the line (a stretch stays where it is on the line)",
+    }
+
+    @classmethod
+    def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
+        """A cap that holds the deceleration below the measured peak, on a stretch that begins or
+        ends inside the recordings (one over the whole run is the adhesion limit)."""
+        start = parameters["patch_start_m"]
+        caps = parameters["patch_adhesion"] * STANDARD_GRAVITY_MPS2 < (
+            AdhesionLimit.RELEVANT_BELOW_PEAK * evidence.peak_decel_mps2
+        )
+        return caps and on_part_of_the_run(start, start + parameters["patch_length_m"], evidence)
+
+    @classmethod
+    def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
+        """Where the residual along position steps down: the stretch's ends half a train length
+        inside the step's edges, the adhesion at shares of the plateau of the deceleration there.
+        A step up (the train slows more on the stretch) is no loss of adhesion."""
+        spec = cls.spec("patch_adhesion")
+        points = []
+        for stretch in evidence.stretches:
+            if stretch.decel_step_mps2 >= 0.0 or not math.isfinite(stretch.peak_decel_mps2):
+                continue
+            start, length = stretch.section(cls.TRAIN_LENGTH_M)
+            plateau = stretch.peak_decel_mps2 / STANDARD_GRAVITY_MPS2
+            for share in cls.PLATEAU_SHARES:
+                points.append(np.array([start, length, float(np.clip(plateau * share, spec.lower, spec.upper))]))
+        return points
+
+    def apply(self, model: EffectedModel) -> None:
+        n = model.n_trains
+        adhesion = per_train(self["patch_adhesion"], n, "patch_adhesion")
+        start = per_train(self["patch_start_m"], n, "patch_start_m")
+        axle_load_N = model.gravitational_mass_kg / model.plant.n_axles * STANDARD_GRAVITY_MPS2
+        cap = AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)
+        end = start + per_train(self["patch_length_m"], n, "patch_length_m")
+        model.friction_modifiers.append(AdhesionSectionCap(cap, start, end, self.TRAIN_LENGTH_M))

@@ -130,3 +130,36 @@ class AdhesionCap:
         axle_force = (mu * context.clamp_force_N).sum(axis=1) * self.plant.radius_ratio  # (A, B)
         safe = np.where(axle_force > self.limit_N, axle_force, 1.0)
         return np.where(axle_force > self.limit_N, self.limit_N / safe, 1.0)[:, None, :]
+
+
+@dataclass(frozen=True)
+class AdhesionSectionCap:
+    """Caps the brake force of the axles on a stretch of low adhesion, from ``start_m`` to
+    ``end_m`` (per train, (B,)), as :class:`AdhesionCap` caps it on the whole line.
+
+    The axles are spread evenly over ``train_length_m`` behind the train's reference point (axle
+    ``a`` at ``(a + 1/2) L / A`` behind it, the leading axle first). Each axle's cap phases in and
+    out over its share ``L / A`` of the train's length, so that the train's brake capacity ramps
+    over one train length as it runs onto the stretch, as a section's gradient force does
+    (:class:`GradientSectionForce`): a factor continuous in the stretch's ends, which a fit can move
+    by finite differences.
+    """
+
+    cap: AdhesionCap  # the cap as it would act on the whole line
+    start_m: np.ndarray  # (B,)
+    end_m: np.ndarray  # (B,)
+    train_length_m: float
+
+    def share_on_stretch(self, position_m: np.ndarray) -> np.ndarray:
+        """(A, B): how much of each axle's share of the train is on the stretch, 0..1, with the
+        train's reference points at ``position_m`` (B,)."""
+        n_axles = self.cap.plant.n_axles
+        spacing = self.train_length_m / n_axles
+        axle_m = np.asarray(position_m, dtype=float)[None, :] - spacing * (np.arange(n_axles)[:, None] + 0.5)
+        front = np.minimum(axle_m + 0.5 * spacing, self.end_m)
+        back = np.maximum(axle_m - 0.5 * spacing, self.start_m)
+        return np.clip(front - back, 0.0, spacing) / spacing
+
+    def scale(self, context: StageContext) -> np.ndarray:
+        share = self.share_on_stretch(context.position_m)[:, None, :]
+        return 1.0 - share * (1.0 - self.cap.scale(context))

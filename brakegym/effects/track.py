@@ -11,7 +11,7 @@ import numpy as np
 from .. import config as cfg
 from ..physics import RunningResistanceLaw
 from ..units import STANDARD_GRAVITY_MPS2
-from .base import Effect, EffectedModel, Evidence, ParameterSpec, per_train
+from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, ParameterSpec, on_part_of_the_run, per_train
 from .hooks import ConstantForce, GradientSectionForce
 
 
@@ -58,7 +58,7 @@ class GradientSection(Effect):
     The force is the gradient's m g p / 1000 times the share of the train on the section, the
     train's weight spread over ``TRAIN_LENGTH_M`` (:class:`~.hooks.GradientSectionForce`). The
     accelerometer does not see it. The diagnosis screens it only where the residual along
-    position shows a step (:attr:`~brakegym.effects.base.Evidence.position_steps`): a grid over
+    position shows a step (:attr:`~brakegym.effects.base.Evidence.stretches`): a grid over
     start, length and gradient would cost a batch of simulations on every set for an effect that
     the residual locates.
     """
@@ -79,13 +79,13 @@ class GradientSection(Effect):
             description="rise over run x 1000 in the direction of travel",
         ),
     )
-    # ASSUMED: a two-car unit of the emu_8axle's eight axles is about 50 m long (the vehicle
-    # configs carry no length).
-    TRAIN_LENGTH_M = 50.0
+    TRAIN_LENGTH_M = TRAIN_LENGTH_M
     grid_screened = False
     separating_measurements = {
         "gradient": "recordings that start at other places of the line (a section stays where it is on the line)",
         "running_resistance": "an accelerometer (it does not see a slope, it does see running resistance)",
+        "adhesion_section": "an accelerometer (it does not see a slope, it does see a brake force lost to "
+        "adhesion) or applications braked gently across the stretch (a slope acts on them, low adhesion does not)",
     }
 
     @classmethod
@@ -94,13 +94,19 @@ class GradientSection(Effect):
         recordings by a train length: one that covers every recording from end to end is the
         constant gradient, and the gradient effect says so."""
         start, end = parameters["section_start_m"], parameters["section_start_m"] + parameters["section_length_m"]
-        inside = start >= cls.TRAIN_LENGTH_M or end <= evidence.run_distance_m - cls.TRAIN_LENGTH_M
-        covered = start < evidence.run_distance_m
-        return abs(parameters["section_gradient_permil"]) >= Gradient.RELEVANT_PERMIL and inside and covered
+        return abs(parameters["section_gradient_permil"]) >= Gradient.RELEVANT_PERMIL and on_part_of_the_run(
+            start, end, evidence
+        )
 
     @classmethod
     def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
-        return [np.array(step, dtype=float) for step in evidence.position_steps]
+        """The section that would leave each located step: its ends half a train length inside
+        the step's edges, its gradient the step's deceleration over g."""
+        points = []
+        for stretch in evidence.stretches:
+            start, length = stretch.section(cls.TRAIN_LENGTH_M)
+            points.append(np.array([start, length, 1000.0 * stretch.decel_step_mps2 / STANDARD_GRAVITY_MPS2]))
+        return points
 
     def apply(self, model: EffectedModel) -> None:
         n = model.n_trains
