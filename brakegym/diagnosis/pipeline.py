@@ -140,6 +140,12 @@ class Diagnoser:
             stretches=(position_step.stretch(),) if located else (),
         )
 
+    def _position_step(self, weighting: Weighting, baseline: FitResult) -> PositionStep | None:
+        """Where the unmodified model's residual steps along position (an effect on part of the
+        line is screened there)."""
+        traces = self._baseline_residual(weighting, baseline).traces
+        return find_position_step(traces, self.rules.position_step_bin_m, TRAIN_LENGTH_M)
+
     def unmodified_fit(self) -> FitResult:
         """The unmodified model fitted to the recordings: each recording's nuisance alone."""
         return self.problem.fit([], self.problem.gridded_start())
@@ -176,7 +182,7 @@ class Diagnoser:
                 raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
-        evidence = self._evidence(baseline, None)
+        evidence = self._evidence(baseline, self._position_step(weighting, baseline))
         nuisance = baseline.x[len(baseline.free) :]
         if start is None:
             start, nuisance = self._screened_start(ids, fixed, weighting, evidence, baseline)
@@ -225,8 +231,7 @@ class Diagnoser:
         problem, rules = self.problem, self.rules
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
-        traces = self._baseline_residual(weighting, baseline).traces
-        position_step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
+        position_step = self._position_step(weighting, baseline)
         evidence = self._evidence(baseline, position_step)
         judge = Judge(problem, weighting, rules, evidence, baseline)
         screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
