@@ -209,6 +209,7 @@ def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
             or entry["heldout_t"] < DiagnosisRules().heldout_min_t
             or entry["heldout_p"] > DiagnosisRules().heldout_max_p
             or not entry["relevant_size"]
+            or entry["at_search_range_end"]
         ), entry
     # Where it lives: the recordings of the segments beyond noise.
     assert report["mismatch"]["significant"] and report["mismatch"]["segments"]

@@ -273,3 +273,37 @@ def test_bad_effect_config_names_file_field_and_value(tmp_path, monkeypatch, eff
     with pytest.raises(cfg.ConfigError, match=message) as info:
         load_effects("bad")
     assert str(path) in str(info.value)
+
+
+def test_a_fit_at_a_search_bound_is_told_from_one_at_a_physical_bound():
+    """A thermal fade's onset at the lowest the library allows ends its search range; a running
+    resistance's B = 0 is a physical bound that the truth can sit on (no linear term)."""
+    share = 0.005
+    onset = make_effect("thermal_fade", onset_C=100.0, loss_per_100K=0.2).spec("onset_C")
+    assert onset.at_range_end(80.01, share) and onset.at_range_end(599.0, share)
+    assert not onset.at_range_end(100.0, share)
+    resistance = EFFECTS["running_resistance"]
+    assert not resistance.spec("B_N_per_mps").at_range_end(0.0, share)
+    assert resistance.spec("B_N_per_mps").at_range_end(299.9, share)
+    # A parameter on a log grid: the share of its range in logarithm (10 MJ is the top).
+    drying = EFFECTS["wet_pads"].spec("drying_energy_MJ")
+    assert drying.at_range_end(9.9, share) and not drying.at_range_end(9.0, share)
+    assert drying.at_range_end(0.0502, share) and not drying.at_range_end(0.06, share)
+    # Every bound of the library is one or the other on purpose: the physical ones by name.
+    physical = {
+        (cls.id, spec.name, side)
+        for cls in EFFECTS.values()
+        for spec in cls.parameters
+        for side, is_physical in (("lower", spec.lower_is_physical), ("upper", spec.upper_is_physical))
+        if is_physical
+    }
+    assert physical == {
+        ("wet_pads", "initial_loss", "lower"),
+        ("thermal_fade", "loss_per_100K", "lower"),
+        ("running_resistance", "A_N", "lower"),
+        ("running_resistance", "B_N_per_mps", "lower"),
+        ("running_resistance", "C_N_per_mps2", "lower"),
+        ("temperature_sensor_lag", "tau_s", "lower"),
+        ("gradient_section", "section_start_m", "lower"),
+        ("adhesion_section", "patch_start_m", "lower"),
+    }

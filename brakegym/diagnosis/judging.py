@@ -14,7 +14,10 @@ A candidate is selected when
   ``heldout_min_recordings`` of them (a recording it leaves alone is no evidence either way, and
   the gains of those it acts on differ by orders of magnitude: a thermal fade that only the
   hottest stops reach), and
-- its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`).
+- its fitted size is physically relevant (:meth:`brakegym.effects.Effect.is_relevant`), and
+- no parameter ends at a bound of its search range that is not physical
+  (``range_end_share``): a thermal fade with its onset at the lowest the library allows, or wet
+  pads drying over the longest, stands in for something the library does not describe.
 
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
 replaces it by the same rules, judged against the single: the pair must lower the BIC by
@@ -76,6 +79,8 @@ class Candidate:
     delta_bic: float  # against the unmodified model
     heldout: HeldOut
     relevant: bool = True
+    #: the parameters fitted at a bound of their search range that is not physical
+    at_range_end: list[str] = field(default_factory=list)
     passes: bool = False  # beats the unmodified model by every rule (singles)
     acting_gain: float = math.nan  # mean share of held-out error removed over the recordings it acts on
     #: whether it passed the BIC rule (or for an added friction level, its shared-shift test) and
@@ -183,7 +188,20 @@ class Judge:
             )
             for eid in effect_ids
         )
+        candidate.at_range_end = [
+            spec.name
+            for eid in effect_ids
+            for spec in EFFECTS[eid].parameters
+            if not spec.integer
+            and spec.name in fit.parameters
+            and spec.at_range_end(fit.parameters[spec.name], self.rules.range_end_share)
+        ]
         return candidate
+
+    @staticmethod
+    def selectable(candidate: Candidate) -> bool:
+        """Relevant in size, and no parameter at the end of its search range."""
+        return candidate.relevant and not candidate.at_range_end
 
     def beats(
         self,
@@ -225,7 +243,7 @@ class Judge:
         candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
         candidate.passes_bic_rule = bool(bic_rule)
         candidate.passes_heldout_rule = self._consistent(t, p)
-        return candidate.relevant and candidate.passes_bic_rule and candidate.passes_heldout_rule
+        return self.selectable(candidate) and candidate.passes_bic_rule and candidate.passes_heldout_rule
 
     def _consistent(self, t: float, p: float) -> bool:
         """The held-out rule on a paired t and its p-value (nan: too few recordings)."""
@@ -290,7 +308,7 @@ class Judge:
         rules = self.rules
         single_sse = float(np.sum(single.heldout.sse))
         return (
-            pair.relevant
+            self.selectable(pair)
             and float(np.sum(pair.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * single_sse
             and (pair.passes_bic_rule or pair.passes_heldout_rule)
         )
@@ -330,7 +348,7 @@ class Judge:
             for c in singles
             if not c.passes
             and c.effect_ids[0] not in selected_ids
-            and c.relevant
+            and self.selectable(c)
             and c.delta_bic < rules.select_delta_bic
             and 1 <= len(c.report["heldout_acts_on"]) <= rules.unconfirmed_max_recordings
             and c.acting_gain >= rules.unconfirmed_min_gain

@@ -124,7 +124,9 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
     residuals = _residuals_figure(diagnosis, out_dir / "residuals.png")
     traces = _traces_figure(diagnosis, out_dir / "measured_vs_simulated.png")
     (out_dir / "diagnosis.json").write_text(json.dumps(report, indent=2) + "\n")
-    candidate_rows = [["effects", "parameters (95 %)", "delta BIC", "held-out gain", "relevant size"]]
+    candidate_rows = [
+        ["effects", "parameters (95 %)", "delta BIC", "held-out gain", "relevant size", "at its search range's end"]
+    ]
     for c in report["candidates"]:
         parameters = ", ".join(
             f"{k} = {v:g} [{c['ci95'][k][0]:g}, {c['ci95'][k][1]:g}]" for k, v in c["parameters"].items()
@@ -136,6 +138,7 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
                 f"{c['delta_bic']:g}",
                 f"{c.get('heldout_gain', float('nan')):.3f}",
                 str(c["relevant_size"]),
+                ", ".join(c.get("at_search_range_end") or []),
             ]
         )
     rms_rows = [

@@ -93,6 +93,7 @@ def candidate_entries(
                 "delta_bic": round(candidate.delta_bic, 1),
                 "mismatch_explained_share": None if share is None else round(share, 3),
                 "relevant_size": candidate.relevant,
+                "at_search_range_end": list(candidate.at_range_end),
                 "stop_distance_error_before": base_stop,
                 "stop_distance_error_after": stop_errors(fit),
             }

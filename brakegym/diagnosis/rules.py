@@ -52,6 +52,10 @@ class DiagnosisRules:
     heldout_acts_share: float = 0.10
     #: the paired t needs at least this many recordings acted on
     heldout_min_recordings: int = 2
+    #: a candidate fitted within this share of a parameter's range (of its logarithm on a log
+    #: grid) of a bound that is not physical is not selected: the data want the effect beyond the
+    #: sizes the library gives it (:meth:`brakegym.effects.ParameterSpec.at_range_end`)
+    range_end_share: float = 0.005
     #: a relevant candidate with a BIC gain that acts on at most this many recordings cannot show
     #: a consistent held-out gain; it is reported unconfirmed (not selected) ...
     unconfirmed_max_recordings: int = 2

@@ -232,6 +232,7 @@ def _try_entry(attempt: FallbackTry, selected: Candidate | None) -> dict[str, An
         "heldout_t": candidate.report.get("heldout_t"),
         "heldout_p": candidate.report.get("heldout_p"),
         "relevant_size": candidate.relevant,
+        "at_search_range_end": list(candidate.at_range_end),
         "replaced_screened_fit": attempt.replaced_screened_fit,
         "verdict": verdict,
     }

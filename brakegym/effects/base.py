@@ -15,6 +15,7 @@ look-alike. The diagnosis hands it the :class:`Evidence` of a set of recordings.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -31,7 +32,11 @@ Value = float | np.ndarray
 class ParameterSpec:
     """One parameter of an effect.
 
-    ``lower``..``upper`` are physical bounds (what a fit may explore). ``no_effect`` is the value
+    ``lower``..``upper`` bound what a fit may explore. A bound is physical where the truth can sit
+    on it (a running resistance's B >= 0, a loss of 0: ``lower_is_physical``,
+    ``upper_is_physical``); otherwise it ends the search range at sizes past which the effect is
+    no longer plausible, and a fit that ends there is not named by the diagnosis (the data want
+    the effect beyond what the library gives it, standing in for something else). ``no_effect`` is the value
     at which the effect is absent; it may lie outside the bounds (an adhesion limit is absent at
     infinite adhesion) and is None when it depends on the vehicle (see
     :meth:`Effect.no_effect_values`). ``synth_ranges`` are the intervals ``brakegym synth`` draws
@@ -50,6 +55,8 @@ class ParameterSpec:
     integer: bool = False
     description: str = ""
     log_grid: bool = False
+    lower_is_physical: bool = False
+    upper_is_physical: bool = False
 
     def check(self, effect_id: str, value: Value) -> np.ndarray:
         array = np.asarray(value, dtype=float)
@@ -71,6 +78,17 @@ class ParameterSpec:
         if self.integer and np.any((array != np.round(array)) & ~absent):
             raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} must be a whole number")
         return array
+
+    def at_range_end(self, value: float, share: float) -> bool:
+        """Whether ``value`` lies within ``share`` of the range (of its logarithm for a
+        ``log_grid`` parameter) of a bound that is not physical."""
+        if self.log_grid:
+            position = math.log(value / self.lower) / math.log(self.upper / self.lower)
+        else:
+            position = (value - self.lower) / (self.upper - self.lower)
+        return (position <= share and not self.lower_is_physical) or (
+            position >= 1.0 - share and not self.upper_is_physical
+        )
 
     def grid(self, points: int) -> np.ndarray:
         """``points`` values across the bounds: the midpoints of equal parts (of geometric parts

@@ -61,7 +61,16 @@ class WetPads(Effect):
 
     id = "wet_pads"
     parameters = (
-        ParameterSpec("initial_loss", "", 0.0, 0.8, 0.0, ((0.15, 0.5),), description="share of mu lost at the start"),
+        ParameterSpec(
+            "initial_loss",
+            "",
+            0.0,
+            0.8,
+            0.0,
+            ((0.15, 0.5),),
+            description="share of mu lost at the start",
+            lower_is_physical=True,
+        ),
         # exp(-E / E_dry): 0.7 and 1.7 MJ are far apart, 5 and 8 MJ nearly alike, so the energy is
         # screened on a geometric grid; a linear grid's points (1.7, 5.0, 8.3 MJ) start a fit of
         # pads that dry within 1 MJ in a second, worse valley at 5-7 MJ.
@@ -109,7 +118,7 @@ class ThermalFade(Effect):
     id = "thermal_fade"
     parameters = (
         ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),)),
-        ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),)),
+        ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),), lower_is_physical=True),
     )
     # The share of mu a fade must take at the hottest friction surface reached, as large as a
     # relevant friction level.
@@ -209,7 +218,14 @@ class AdhesionSection(Effect):
     id = "adhesion_section"
     parameters = (
         ParameterSpec(
-            "patch_start_m", "m", 0.0, 2500.0, 0.0, ((100.0, 400.0),), description="where the stretch begins"
+            "patch_start_m",
+            "m",
+            0.0,
+            2500.0,
+            0.0,
+            ((100.0, 400.0),),
+            description="where the stretch begins",
+            lower_is_physical=True,  # the recordings begin on it
         ),
         ParameterSpec("patch_length_m", "m", 50.0, 2500.0, 0.0, ((150.0, 500.0),), description="how long it is"),
         ParameterSpec("patch_adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),)),

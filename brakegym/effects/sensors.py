@@ -31,7 +31,7 @@ class TemperatureSensorLag(Effect):
 
     id = "temperature_sensor_lag"
     sensor = True
-    parameters = (ParameterSpec("tau_s", "s", 0.0, 60.0, 0.0, ((2.0, 20.0),)),)
+    parameters = (ParameterSpec("tau_s", "s", 0.0, 60.0, 0.0, ((2.0, 20.0),), lower_is_physical=True),)
     RELEVANT_TAU_S = 1.0
 
     @classmethod

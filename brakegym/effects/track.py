@@ -66,7 +66,14 @@ class GradientSection(Effect):
     id = "gradient_section"
     parameters = (
         ParameterSpec(
-            "section_start_m", "m", 0.0, 2500.0, 0.0, ((100.0, 400.0),), description="where the section begins"
+            "section_start_m",
+            "m",
+            0.0,
+            2500.0,
+            0.0,
+            ((100.0, 400.0),),
+            description="where the section begins",
+            lower_is_physical=True,  # the recordings begin on it
         ),
         ParameterSpec("section_length_m", "m", 50.0, 2500.0, 0.0, ((250.0, 600.0),), description="how long it is"),
         ParameterSpec(
@@ -128,9 +135,9 @@ class RunningResistanceEffect(Effect):
 
     id = "running_resistance"
     parameters = (
-        ParameterSpec("A_N", "N", 0.0, 20000.0, None, ((6000.0, 12000.0),)),
-        ParameterSpec("B_N_per_mps", "N s/m", 0.0, 300.0, None, ((60.0, 150.0),)),
-        ParameterSpec("C_N_per_mps2", "N s^2/m^2", 0.0, 30.0, None, ((8.0, 14.0),)),
+        ParameterSpec("A_N", "N", 0.0, 20000.0, None, ((6000.0, 12000.0),), lower_is_physical=True),
+        ParameterSpec("B_N_per_mps", "N s/m", 0.0, 300.0, None, ((60.0, 150.0),), lower_is_physical=True),
+        ParameterSpec("C_N_per_mps2", "N s^2/m^2", 0.0, 30.0, None, ((8.0, 14.0),), lower_is_physical=True),
     )
     # Relevant when it differs from the nominal by twice the scatter of A at a typical speed.
     RELEVANT_SPEED_MPS = 20.0
