@@ -17,7 +17,8 @@ physics from the effect library, fit it, and say how sure that is. A pipeline of
    gridded with the effect acting and from the best point of its grid's second valley, the best
    fit kept (``Diagnoser._fit_screened``); and the pairs of the best ``pairs_from``; the
    friction level too where its screened point shows a shift shared by the recordings' friction
-   factors (:func:`.judging.shared_friction_shift`), however it ranks.
+   factors (:func:`.judging.shared_friction_shift`), however it ranks; and the effects screened
+   where the data locate them (a section, a stretch), beside the grid-screened ones.
 6. **Fallback as a screening source**: with no single passing the rules of :mod:`.judging` and a
    residual the data-driven description would call unexplained, each library effect whose
    signature the residual matches (:mod:`.signatures`) is fitted from the start the signature
@@ -288,12 +289,19 @@ class Diagnoser:
         """The best screened effects fitted in full, best BIC first. An effect whose best screened
         point does not beat the unmodified model has its optimum at (or next to) its no-effect
         value: fitting it in full costs the most (several effects run their hooks in Python at
-        every RK4 stage) and can only confirm that."""
+        every RK4 stage) and can only confirm that.
+
+        The ``top_singles`` are the best of the grid-screened effects; an effect screened where
+        the data locate it (a section, a stretch) is fitted beside them, not in place of one: a
+        step along position that a whole-line effect leaves (an adhesion limit's) makes the
+        stretch its look-alike, and it would push the next different effect out."""
         rules = self.rules
         order = sorted(screened, key=lambda e: screened[e].chi2)
         promising = [e for e in order if screened[e].chi2 < judge.chi2_base - rules.screen_min_gain]
+        gridded = [e for e in promising if EFFECTS[e].grid_screened]
+        located = [e for e in promising if not EFFECTS[e].grid_screened]
         singles = []
-        for effect_id in self._with_shared_shift(promising, rules.top_singles, screened):
+        for effect_id in self._with_shared_shift(gridded, rules.top_singles, screened) + located:
             fit = self._fit_screened(screening, effect_id, screened[effect_id], judge.weighting)
             singles.append(judge.candidate((effect_id,), fit))
         singles.sort(key=lambda c: c.delta_bic)
@@ -338,11 +346,17 @@ class Diagnoser:
         return fits[min(range(len(fits)), key=lambda j: (not np.isfinite(chi2s[j]), chi2s[j]))]
 
     def _fit_pairs(self, singles: Sequence[Candidate], judge: Judge) -> list[Candidate]:
-        """The pairs of the best ``pairs_from`` singles, fitted from the singles' parameters and
-        the nuisance of the better one (the unmodified model's has absorbed what that effect
-        explains: friction factors near 0.75 where units failed)."""
+        """The pairs of the best ``pairs_from`` singles of grid-screened effects, and of the best
+        located one where it ranks among the best ``pairs_from`` of all (see ``_fit_singles``),
+        fitted from the singles' parameters and the nuisance of the better one (the unmodified
+        model's has absorbed what that effect explains: friction factors near 0.75 where units
+        failed)."""
+        count = self.rules.pairs_from
+        pool = [c for c in singles if EFFECTS[c.effect_ids[0]].grid_screened][:count]
+        pool += [c for c in singles[:count] if not EFFECTS[c.effect_ids[0]].grid_screened][:1]
+        pool.sort(key=lambda c: c.delta_bic)
         pairs = []
-        for a, b in itertools.combinations(singles[: self.rules.pairs_from], 2):
+        for a, b in itertools.combinations(pool, 2):
             ids = tuple(sorted((a.effect_ids[0], b.effect_ids[0]), key=list(EFFECTS).index))
             first, second = (a, b) if ids[0] == a.effect_ids[0] else (b, a)
             fixed = {**first.fit.fixed, **second.fit.fixed}
