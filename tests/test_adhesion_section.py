@@ -205,3 +205,43 @@ def test_the_diagnosis_names_a_stretch_of_low_adhesion_where_it_lies(patch_set):
     by_effects = {tuple(c["effects"]): c for c in report["candidates"]}
     section = by_effects.get(("gradient_section",))
     assert section is None or section["delta_bic"] > by_effects[("adhesion_section",)]["delta_bic"]
+
+
+def test_a_located_effect_joins_the_pairs_without_pushing_a_whole_line_one_out():
+    """The pairs are fitted among the best two grid-screened singles, and the best located one
+    where it ranks among the best two of all."""
+    from types import SimpleNamespace
+
+    from brakegym.diagnosis.pipeline import pairing_pool
+
+    def single(effect_id, delta_bic):
+        return SimpleNamespace(effect_ids=(effect_id,), delta_bic=delta_bic)
+
+    limit, stretch = single("adhesion_limit", -12480), single("adhesion_section", -12384)
+    resistance = single("running_resistance", -10021)
+    section, level = single("gradient_section", -12000), single("friction_level", -1780)
+    pool = pairing_pool([limit, stretch, section, resistance, level], 2)
+    assert [c.effect_ids[0] for c in pool] == ["adhesion_limit", "adhesion_section", "running_resistance"]
+    # A located effect that ranks third is not paired; the grid's best two are.
+    pool = pairing_pool([limit, resistance, stretch, level], 2)
+    assert [c.effect_ids[0] for c in pool] == ["adhesion_limit", "running_resistance"]
+
+
+@pytest.fixture(scope="module")
+def limit_and_resistance_set(tmp_path_factory):
+    """Set 1326102795 of the blind benchmark's seed 17: an adhesion limit of 0.0872 and a running
+    resistance (A 7830 N, B 62 N s/m, C 8.9 N s^2/m^2), drawn by ``--random-effects``."""
+    folder = tmp_path_factory.mktemp("limit") / "set"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = synthesize(folder, 8, seed=1326102795, random_effects=True)
+    assert [e["id"] for e in result.key["effects"]] == ["adhesion_limit", "running_resistance"]
+    return folder
+
+
+def test_a_stretch_that_looks_like_the_adhesion_limit_leaves_the_pair_of_the_truth_found(limit_and_resistance_set):
+    """The limit leaves a step along position and the stretch fits nearly as well as the limit;
+    fitted in place of the running resistance it had the pair of the truth go unfitted."""
+    report = diagnose(limit_and_resistance_set).report
+    assert report["selected"] == ["adhesion_limit", "running_resistance"], report["summary"]
+    assert report["position_step"]["explained_share"] >= 0.05  # the stretch was screened

@@ -80,7 +80,7 @@ from .screening import ScreenedPoint, Screening, integer_neighbours
 from .signatures import FallbackScreening, FallbackTry, match_signatures
 from .weighting import CHANNEL_NAMES, Weighting
 
-__all__ = ["Diagnoser", "Diagnosis", "diagnose"]
+__all__ = ["Diagnoser", "Diagnosis", "diagnose", "pairing_pool"]
 
 
 @dataclass
@@ -351,12 +351,8 @@ class Diagnoser:
         fitted from the singles' parameters and the nuisance of the better one (the unmodified
         model's has absorbed what that effect explains: friction factors near 0.75 where units
         failed)."""
-        count = self.rules.pairs_from
-        pool = [c for c in singles if EFFECTS[c.effect_ids[0]].grid_screened][:count]
-        pool += [c for c in singles[:count] if not EFFECTS[c.effect_ids[0]].grid_screened][:1]
-        pool.sort(key=lambda c: c.delta_bic)
         pairs = []
-        for a, b in itertools.combinations(pool, 2):
+        for a, b in itertools.combinations(pairing_pool(singles, self.rules.pairs_from), 2):
             ids = tuple(sorted((a.effect_ids[0], b.effect_ids[0]), key=list(EFFECTS).index))
             first, second = (a, b) if ids[0] == a.effect_ids[0] else (b, a)
             fixed = {**first.fit.fixed, **second.fit.fixed}
@@ -505,6 +501,15 @@ class BaselineResidual:
 def _free_names(problem: FitProblem, effect_id: str, fixed: dict[str, float]) -> list[str]:
     """The names of ``effect_id``'s free parameters with ``fixed`` held, in the screening's order."""
     return [parameter.name for parameter in problem.free_parameters([effect_id], fixed)]
+
+
+def pairing_pool(singles: Sequence[Candidate], count: int) -> list[Candidate]:
+    """The singles whose pairs are fitted: the best ``count`` of grid-screened effects, and the
+    best of those screened where the data locate them (a section, a stretch) where it ranks among
+    the best ``count`` of all; ``singles`` best BIC first, and so is the pool."""
+    pool = [c for c in singles if EFFECTS[c.effect_ids[0]].grid_screened][:count]
+    pool += [c for c in singles[:count] if not EFFECTS[c.effect_ids[0]].grid_screened][:1]
+    return sorted(pool, key=lambda c: c.delta_bic)
 
 
 def forward_screening_entry(single: Candidate, screened: dict[str, ScreenedPoint]) -> dict[str, Any]:
