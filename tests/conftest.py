@@ -4,6 +4,7 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
@@ -29,3 +30,42 @@ def load_benchmark() -> Callable[[str], ModuleType]:
         return sys.modules[name]
 
     return load
+
+
+@pytest.fixture(scope="session")
+def simulate_one_stop() -> Callable[..., tuple]:
+    """One emu_8axle application, empty, from 25 m/s at a constant 3.3 bar from t = 0 to
+    standstill with 50 degC discs, under ``effects`` and any extra hooks: returns the effected
+    model and the simulated grid (tests of effects on part of the line)."""
+    from brakegym import config as cfg
+    from brakegym.effects import apply_effects
+    from brakegym.plants import train_plant
+    from brakegym.recordings.replay import simulate_grid
+    from brakegym.simulator import BatchConditions, PrescribedPressure
+
+    vehicle = cfg.load("vehicles", "emu_8axle")
+    material = cfg.load("materials", vehicle.material)
+    plant = train_plant(vehicle)
+    shape = (1, *plant.disc_shape)
+
+    def run(effects=(), extra_forces=(), friction_modifiers=(), pressure_bar: float = 3.3):
+        conditions = BatchConditions(
+            mass_kg=np.full(1, vehicle.mass_kg("empty")),
+            initial_speed_mps=np.full(1, 25.0),
+            initial_mu=np.full(shape, material.initial_mu),
+            power_coefficient_per_s=np.full(shape, material.power_coefficient_per_s),
+            running_resistance_A_N=np.full(1, vehicle.running_resistance.A_N),
+            initial_friction_temperature_K=np.full(shape, 323.15),
+            initial_disc_temperature_K=np.full(shape, 323.15),
+            ambient_temperature_K=np.full(1, 293.15),
+        )
+        model = apply_effects(plant, conditions, list(effects))
+        model.extra_forces.extend(extra_forces)
+        model.friction_modifiers.extend(friction_modifiers)
+        trace = np.full((2, 1, vehicle.n_axles), pressure_bar)
+        grid = simulate_grid(
+            model, PrescribedPressure(np.array([0.0, 1.0]), trace, 0.1), 0.1, lambda sim: not sim.moving.any()
+        )
+        return model, grid
+
+    return run

@@ -18,16 +18,13 @@ from brakegym.effects import (
     Evidence,
     GradientSection,
     LocatedStretch,
-    apply_effects,
     make_effect,
     separating_measurement,
 )
 from brakegym.effects.hooks import AdhesionCap, AdhesionSectionCap
 from brakegym.plants import train_plant
 from brakegym.recordings.measurement import MeasurementModel
-from brakegym.recordings.replay import simulate_grid
 from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, synthesize
-from brakegym.simulator import BatchConditions, PrescribedPressure
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO = Path(__file__).resolve().parent.parent
@@ -43,31 +40,6 @@ pytestmark = pytest.mark.filterwarnings("ignore")
 def checkout_configs(monkeypatch):
     """This checkout's configs on the search path (an installed brakegym may ship others)."""
     monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(REPO / "configs"))
-
-
-def _conditions(speed_mps: float = 25.0) -> BatchConditions:
-    material = cfg.load("materials", VEHICLE.material)
-    shape = (1, *PLANT.disc_shape)
-    return BatchConditions(
-        mass_kg=np.full(1, VEHICLE.mass_kg("empty")),
-        initial_speed_mps=np.full(1, speed_mps),
-        initial_mu=np.full(shape, material.initial_mu),
-        power_coefficient_per_s=np.full(shape, material.power_coefficient_per_s),
-        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
-        initial_friction_temperature_K=np.full(shape, 323.15),
-        initial_disc_temperature_K=np.full(shape, 323.15),
-        ambient_temperature_K=np.full(1, 293.15),
-    )
-
-
-def _run(effects=(), friction_modifiers=(), pressure_bar: float = 3.3):
-    model = apply_effects(PLANT, _conditions(), list(effects))
-    model.friction_modifiers.extend(friction_modifiers)
-    trace = np.full((2, 1, VEHICLE.n_axles), pressure_bar)
-    grid = simulate_grid(
-        model, PrescribedPressure(np.array([0.0, 1.0]), trace, 0.1), 0.1, lambda sim: not sim.moving.any()
-    )
-    return model, grid
 
 
 def _patch_cap(start_m: float, end_m: float, adhesion: float) -> AdhesionSectionCap:
@@ -97,18 +69,18 @@ def test_each_axle_comes_under_the_cap_over_its_share_of_the_train():
     np.testing.assert_allclose(patch.share_on_stretch(np.array([350.0]))[:, 0], 0.0)
 
 
-def test_a_stretch_over_the_whole_run_is_the_adhesion_limit():
+def test_a_stretch_over_the_whole_run_is_the_adhesion_limit(simulate_one_stop):
     """Analytic limit: a stretch that the train is wholly on from start to stop leaves the same
     motion as the library's adhesion limit."""
-    _, on_stretch = _run(friction_modifiers=[_patch_cap(-1e6, 1e6, 0.07)])
-    _, limited = _run([make_effect("adhesion_limit", adhesion=0.07)])
+    _, on_stretch = simulate_one_stop(friction_modifiers=[_patch_cap(-1e6, 1e6, 0.07)])
+    _, limited = simulate_one_stop([make_effect("adhesion_limit", adhesion=0.07)])
     assert on_stretch.stop_time_s[0] == pytest.approx(limited.stop_time_s[0], rel=1e-9)
     np.testing.assert_allclose(on_stretch.position_m[-1], limited.position_m[-1], rtol=1e-9)
 
 
-def test_the_cap_holds_the_train_on_the_stretch_only_and_the_accelerometer_sees_it():
-    model, capped = _run([make_effect("adhesion_section", **{**PATCH, "patch_start_m": 100.0})])
-    _, free = _run()
+def test_the_cap_holds_the_train_on_the_stretch_only_and_the_accelerometer_sees_it(simulate_one_stop):
+    model, capped = simulate_one_stop([make_effect("adhesion_section", **{**PATCH, "patch_start_m": 100.0})])
+    _, free = simulate_one_stop()
     before = int(np.sum(capped.position_m[:, 0] < 100.0))
     assert before > 10
     np.testing.assert_allclose(capped.speed_mps[:before, 0], free.speed_mps[:before, 0], rtol=1e-12)
@@ -137,11 +109,13 @@ def test_the_cap_holds_the_train_on_the_stretch_only_and_the_accelerometer_sees_
     )
 
 
-def test_an_application_braked_below_the_stretchs_adhesion_does_not_feel_it():
+def test_an_application_braked_below_the_stretchs_adhesion_does_not_feel_it(simulate_one_stop):
     """Low adhesion acts only on a brake force above it: 0.2 g is twice this application's
     deceleration, so the motion is the free one to rounding."""
-    _, capped = _run([make_effect("adhesion_section", **{**PATCH, "patch_start_m": 50.0, "patch_adhesion": 0.2})])
-    _, free = _run()
+    _, capped = simulate_one_stop(
+        [make_effect("adhesion_section", **{**PATCH, "patch_start_m": 50.0, "patch_adhesion": 0.2})]
+    )
+    _, free = simulate_one_stop()
     assert capped.stop_time_s[0] == pytest.approx(free.stop_time_s[0], rel=1e-12)
     np.testing.assert_allclose(capped.position_m[-1], free.position_m[-1], rtol=1e-12)
 

@@ -18,14 +18,11 @@ from brakegym.diagnosis.markdown import found_lines, write_report
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.position_steps import find_position_step
 from brakegym.diagnosis.rules import DiagnosisRules
-from brakegym.effects import EFFECTS, Evidence, GradientSection, apply_effects, make_effect
+from brakegym.effects import EFFECTS, Evidence, GradientSection, make_effect
 from brakegym.effects.hooks import GradientSectionForce
-from brakegym.plants import train_plant
 from brakegym.recordings import read_dataset
 from brakegym.recordings.measurement import MeasurementModel
-from brakegym.recordings.replay import simulate_grid
 from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, random_requests, synthesize
-from brakegym.simulator import BatchConditions, PrescribedPressure
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO = Path(__file__).resolve().parent.parent
@@ -58,48 +55,23 @@ def test_the_grade_ramps_over_one_train_length_at_each_end_of_the_section():
     np.testing.assert_allclose(line.grade_at(np.array([150.0, 20.0])), [0.010, -0.002])
 
 
-def _conditions(speed_mps: float = 25.0) -> BatchConditions:
-    material = cfg.load("materials", VEHICLE.material)
-    shape = (1, *train_plant(VEHICLE).disc_shape)
-    return BatchConditions(
-        mass_kg=np.full(1, VEHICLE.mass_kg("empty")),
-        initial_speed_mps=np.full(1, speed_mps),
-        initial_mu=np.full(shape, material.initial_mu),
-        power_coefficient_per_s=np.full(shape, material.power_coefficient_per_s),
-        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
-        initial_friction_temperature_K=np.full(shape, 323.15),
-        initial_disc_temperature_K=np.full(shape, 323.15),
-        ambient_temperature_K=np.full(1, 293.15),
-    )
-
-
-def _run(effects=(), extra_forces=()):
-    model = apply_effects(train_plant(VEHICLE), _conditions(), list(effects))
-    model.extra_forces.extend(extra_forces)
-    trace = np.full((2, 1, VEHICLE.n_axles), 3.3)
-    grid = simulate_grid(
-        model, PrescribedPressure(np.array([0.0, 1.0]), trace, 0.1), 0.1, lambda sim: not sim.moving.any()
-    )
-    return model, grid
-
-
-def test_a_section_over_the_whole_run_is_the_constant_gradient():
+def test_a_section_over_the_whole_run_is_the_constant_gradient(simulate_one_stop):
     """Analytic limit: a section that the train is wholly on from start to stop leaves the same
     motion as the library's constant gradient."""
     weight = np.array([VEHICLE.mass_kg("empty") * STANDARD_GRAVITY_MPS2])
     section = GradientSectionForce(weight, np.array([-1e6]), np.array([1e6]), np.array([9.0]), TRAIN_LENGTH_M)
-    _, on_section = _run(extra_forces=[section])
-    _, graded = _run([make_effect("gradient", gradient_permil=9.0)])
+    _, on_section = simulate_one_stop(extra_forces=[section])
+    _, graded = simulate_one_stop([make_effect("gradient", gradient_permil=9.0)])
     assert on_section.stop_time_s[0] == pytest.approx(graded.stop_time_s[0], rel=1e-9)
     np.testing.assert_allclose(on_section.position_m[-1], graded.position_m[-1], rtol=1e-9)
 
 
-def test_the_section_acts_where_the_train_is_on_it_and_the_accelerometer_does_not_see_it():
+def test_the_section_acts_where_the_train_is_on_it_and_the_accelerometer_does_not_see_it(simulate_one_stop):
     effect = make_effect(
         "gradient_section", section_start_m=100.0, section_length_m=150.0, section_gradient_permil=12.0
     )
-    model, graded = _run([effect])
-    _, level = _run()
+    model, graded = simulate_one_stop([effect])
+    _, level = simulate_one_stop()
     # Before the train reaches the section the motion is the level track's (to rounding: with a
     # force that depends on the position the simulator integrates in another order).
     before = int(np.sum(graded.position_m[:, 0] < 100.0))
@@ -107,7 +79,7 @@ def test_the_section_acts_where_the_train_is_on_it_and_the_accelerometer_does_no
     np.testing.assert_allclose(graded.speed_mps[:before, 0], level.speed_mps[:before, 0], rtol=1e-12)
     assert abs(graded.speed_mps[before + 20, 0] - level.speed_mps[before + 20, 0]) > 0.01
     # Uphill on part of the way: it stops sooner, but later than on 12 permil all the way.
-    _, uphill = _run([make_effect("gradient", gradient_permil=12.0)])
+    _, uphill = simulate_one_stop([make_effect("gradient", gradient_permil=12.0)])
     assert uphill.stop_time_s[0] < graded.stop_time_s[0] < level.stop_time_s[0]
     # The accelerometer reads the motion minus g times the grade under the train.
     accelerometer = MeasurementModel(graded, 0, model, "accelerometer", 1)
