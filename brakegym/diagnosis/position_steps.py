@@ -57,7 +57,7 @@ class PositionStep:
         return 1000.0 * self.decel_step_mps2 / STANDARD_GRAVITY_MPS2
 
     def stretch(self) -> LocatedStretch:
-        """The step as the effects read it (:attr:`brakegym.effects.Evidence.stretches`)."""
+        """The step as the effects read it (:attr:`brakegym.effects.base.Evidence.stretches`)."""
         return LocatedStretch(self.start_m, self.end_m, self.decel_step_mps2, self.peak_decel_mps2)
 
     def report_entry(self) -> dict[str, Any]:

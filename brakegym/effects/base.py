@@ -99,8 +99,8 @@ class ParameterSpec:
         return self.lower + midpoints * (self.upper - self.lower)
 
 
-#: ASSUMED: a two-car unit of the emu_8axle's eight axles is about 50 m long (the vehicle configs
-#: carry no length). Effects on part of the line spread the train over it.
+#: The train's length in metres, over which effects on part of the line spread it (ASSUMED, a
+#: two-car unit of the emu_8axle's eight axles; the vehicle configs carry no length).
 TRAIN_LENGTH_M = 50.0
 
 
