@@ -249,3 +249,20 @@ def test_heldout_rule_study_judges_each_candidate_by_both_rules(load_benchmark):
     assert (judged["thermal_fade"]["former"], judged["thermal_fade"]["now"]) == (True, True)
     assert (judged["adhesion_limit"]["former"], judged["adhesion_limit"]["now"]) == (True, False)
     assert (judged["gradient"]["former"], judged["gradient"]["now"]) == (False, False)
+
+
+def test_friction_factor_study_reads_each_recordings_factor_and_braking_pressure(load_benchmark, tmp_path):
+    """On a clean set without effects each factor is 1 within a few friction scatters, and each
+    recording's mean braking pressure lies between the brake's threshold and its highest command."""
+    import warnings
+
+    from brakegym.recordings.synth import synthesize
+
+    study = load_benchmark("friction_factor_pressure")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        synthesize(tmp_path / "set", 4, seed=3)
+        stems, factors, pressures = study.factors_and_pressures(str(tmp_path / "set"))
+    assert stems == ["rec_001", "rec_002", "rec_003", "rec_004"]
+    assert np.all(np.abs(factors - 1.0) < 0.15), factors
+    assert np.all((pressures > 1.0) & (pressures < 5.0)), pressures
