@@ -18,6 +18,7 @@ from brakegym.effects import (
     Evidence,
     GradientSection,
     LocatedStretch,
+    apply_effects,
     make_effect,
     separating_measurement,
 )
@@ -219,3 +220,55 @@ def test_a_stretch_that_looks_like_the_adhesion_limit_leaves_the_pair_of_the_tru
     report = diagnose(limit_and_resistance_set).report
     assert report["selected"] == ["adhesion_limit", "running_resistance"], report["summary"]
     assert report["position_step"]["explained_share"] >= 0.05  # the stretch was screened
+
+
+def test_an_adhesion_cap_holds_whatever_friction_law_a_synthetic_truth_adds():
+    """Adhesion limits the force at the wheel, so a friction factor from outside the library (the
+    ``real_train`` form's contact-pressure friction) must act before the cap, not on top of it:
+    on a capped axle the force is the cap, with the law or without it."""
+    from brakegym.recordings.model_form import ContactPressureFactor
+    from brakegym.simulator import BatchConditions, StageContext
+    from brakegym.simulator.hooks import friction_scale
+
+    n_axles, per_axle = PLANT.n_axles, PLANT.discs_per_axle
+    conditions = BatchConditions(
+        mass_kg=np.full(1, VEHICLE.mass_kg("empty")),
+        initial_speed_mps=np.full(1, 25.0),
+        initial_mu=np.full((1, n_axles, per_axle), 0.35),
+        power_coefficient_per_s=np.full((1, n_axles, per_axle), 0.008),
+        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
+        initial_friction_temperature_K=np.full((1, n_axles, per_axle), 323.15),
+        initial_disc_temperature_K=np.full((1, n_axles, per_axle), 323.15),
+        ambient_temperature_K=np.full(1, 293.15),
+    )
+    law = ContactPressureFactor(0.1, 20e3, 2e3)
+    adhesion = 0.05
+    limit_N = adhesion * VEHICLE.mass_kg("empty") / n_axles * STANDARD_GRAVITY_MPS2
+    # Clamp forces from well below to well above what the cap allows, one per axle.
+    clamp = np.linspace(3e3, 45e3, n_axles)[:, None, None]
+    context = StageContext(
+        0.0,
+        np.array([20.0]),
+        np.array([400.0]),
+        conditions.mass_kg,
+        np.full((n_axles, per_axle, 1), 0.35),
+        clamp,
+        np.full((n_axles, per_axle, 1), 400.0),
+        np.zeros((n_axles, per_axle, 1)),
+    )
+    # The train's front at 400 m: every axle on the stretch from 300 m.
+    caps = [
+        make_effect("adhesion_limit", adhesion=adhesion),
+        make_effect("adhesion_section", **{**PATCH, "patch_adhesion": adhesion}),
+    ]
+    mu_free = PLANT.friction.bounded(context.mu) * law.scale(context)
+    free_N = (mu_free * clamp).sum(axis=1)[:, 0] * PLANT.radius_ratio
+    for effect in caps:
+        effect_id = effect.id
+        model = apply_effects(PLANT, conditions, [effect], friction_modifiers=[law])
+        mu = PLANT.friction.bounded(context.mu) * friction_scale(model.friction_modifiers, context)
+        axle_force_N = (mu * clamp).sum(axis=1)[:, 0] * PLANT.radius_ratio
+        capped = free_N > limit_N
+        assert capped.any() and (~capped).any(), effect_id
+        np.testing.assert_allclose(axle_force_N[capped], limit_N, rtol=1e-12, err_msg=effect_id)
+        np.testing.assert_allclose(axle_force_N[~capped], free_N[~capped], rtol=1e-12, err_msg=effect_id)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
-from ..simulator import BatchConditions, Plant
+from ..simulator import BatchConditions, FrictionModifier, Plant
 from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, LocatedStretch, ParameterSpec, SensorModel, Value
 from .friction import AdhesionLimit, AdhesionSection, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
@@ -90,8 +90,17 @@ def make_effect(effect_id: str, **parameters: Value) -> Effect:
     return effect_class(effect_id)(**parameters)
 
 
-def apply_effects(plant: Plant, conditions: BatchConditions, effects: Sequence[Effect] = ()) -> EffectedModel:
-    """The model with ``effects`` switched on. The inputs are not changed."""
+def apply_effects(
+    plant: Plant,
+    conditions: BatchConditions,
+    effects: Sequence[Effect] = (),
+    friction_modifiers: Sequence[FrictionModifier] = (),
+) -> EffectedModel:
+    """The model with ``effects`` switched on. The inputs are not changed.
+
+    ``friction_modifiers``: factors on the pads' friction from outside the library (a synthetic
+    truth's model form), put in before the effects, so that an adhesion cap sees them: adhesion
+    limits the force at the wheel, whatever the pads' friction law."""
     ids = [e.id for e in effects]
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
@@ -100,6 +109,7 @@ def apply_effects(plant: Plant, conditions: BatchConditions, effects: Sequence[E
         plant=plant,
         conditions=conditions,
         gravitational_mass_kg=np.asarray(conditions.mass_kg, dtype=float).copy(),
+        friction_modifiers=list(friction_modifiers),
     )
     for effect in sorted(effects, key=lambda e: e.order):  # stable: equal orders keep theirs
         effect.apply(model)

@@ -586,7 +586,8 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
 
 def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[EffectedModel, GridTrajectory]:
     """The true runs of the set's applications with the effects ``chosen``: (model, grid)."""
-    model = apply_effects(drawn.plant, drawn.conditions, chosen)
+    form = drawn.model_form
+    model = apply_effects(drawn.plant, drawn.conditions, chosen, form.friction_modifiers() if form is not None else ())
     add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
         # The effect sets the set's running resistance; each application still scatters around it.
@@ -600,7 +601,6 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
     simulator_class = Simulator
     if drawn.model_form is not None:
         model.extra_forces += drawn.model_form.extra_forces(command_time)
-        model.friction_modifiers += drawn.model_form.friction_modifiers()
         simulator_class = drawn.model_form.form.simulator_class
     step = drawn.truth_step_s
     pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, step)
