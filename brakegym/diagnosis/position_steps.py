@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 
 from ..effects import LocatedStretch
-from ..units import STANDARD_GRAVITY_MPS2
 from .locate import ResidualTrace
 
 __all__ = ["PositionStep", "find_position_step"]
@@ -54,7 +53,7 @@ class PositionStep:
     @property
     def gradient_permil(self) -> float:
         """The gradient whose force leaves this step (its deceleration over g, x 1000)."""
-        return 1000.0 * self.decel_step_mps2 / STANDARD_GRAVITY_MPS2
+        return self.stretch().gradient_permil
 
     def stretch(self) -> LocatedStretch:
         """The step as the effects read it (:attr:`brakegym.effects.base.Evidence.stretches`)."""

@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import config as cfg
 from ..simulator import BatchConditions, ExtraForce, FrictionModifier, Plant, PressureSource, Simulator
+from ..units import STANDARD_GRAVITY_MPS2
 
 Value = float | np.ndarray
 
@@ -114,6 +115,11 @@ class LocatedStretch:
     end_m: float
     decel_step_mps2: float  # on the stretch minus off it (positive: the train slows more there)
     peak_decel_mps2: float  # the measured deceleration of the hardest braking on it
+
+    @property
+    def gradient_permil(self) -> float:
+        """The gradient whose force leaves this step (its deceleration over g, x 1000)."""
+        return 1000.0 * self.decel_step_mps2 / STANDARD_GRAVITY_MPS2
 
     def section(self, train_length_m: float) -> tuple[float, float]:
         """(start_m, length_m) of a section whose effect ramps in over one train length from its

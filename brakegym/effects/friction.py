@@ -195,11 +195,7 @@ class AdhesionLimit(Effect):
         return [np.array([float(np.clip(plateau * share, spec.lower, spec.upper))]) for share in cls.PLATEAU_SHARES]
 
     def apply(self, model: EffectedModel) -> None:
-        adhesion = per_train(self["adhesion"], model.n_trains, "adhesion")
-        axle_load_N = model.gravitational_mass_kg / model.plant.n_axles * STANDARD_GRAVITY_MPS2
-        model.friction_modifiers.append(
-            AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)
-        )
+        model.friction_modifiers.append(_axle_cap(model, per_train(self["adhesion"], model.n_trains, "adhesion")))
 
 
 class AdhesionSection(Effect):
@@ -269,9 +265,15 @@ class AdhesionSection(Effect):
 
     def apply(self, model: EffectedModel) -> None:
         n = model.n_trains
-        adhesion = per_train(self["patch_adhesion"], n, "patch_adhesion")
+        cap = _axle_cap(model, per_train(self["patch_adhesion"], n, "patch_adhesion"))
         start = per_train(self["patch_start_m"], n, "patch_start_m")
-        axle_load_N = model.gravitational_mass_kg / model.plant.n_axles * STANDARD_GRAVITY_MPS2
-        cap = AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)
         end = start + per_train(self["patch_length_m"], n, "patch_length_m")
         model.friction_modifiers.append(AdhesionSectionCap(cap, start, end, self.TRAIN_LENGTH_M))
+
+
+def _axle_cap(model: EffectedModel, adhesion: np.ndarray) -> AdhesionCap:
+    """Each axle's brake force capped at ``adhesion`` (per train) x axle load x g, the axle load
+    the train's weight shared evenly by its axles; it sees the friction factors already in
+    ``model``."""
+    axle_load_N = model.gravitational_mass_kg / model.plant.n_axles * STANDARD_GRAVITY_MPS2
+    return AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)

@@ -112,7 +112,7 @@ class GradientSection(Effect):
         points = []
         for stretch in evidence.stretches:
             start, length = stretch.section(cls.TRAIN_LENGTH_M)
-            points.append(np.array([start, length, 1000.0 * stretch.decel_step_mps2 / STANDARD_GRAVITY_MPS2]))
+            points.append(np.array([start, length, stretch.gradient_permil]))
         return points
 
     def apply(self, model: EffectedModel) -> None:

@@ -599,9 +599,9 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
     command = np.stack([a.axle_pressure_bar for a in applications])
     command_time = np.array([a.command_time_s for a in applications])
     simulator_class = Simulator
-    if drawn.model_form is not None:
-        model.extra_forces += drawn.model_form.extra_forces(command_time)
-        simulator_class = drawn.model_form.form.simulator_class
+    if form is not None:
+        model.extra_forces += form.extra_forces(command_time)
+        simulator_class = form.form.simulator_class
     step = drawn.truth_step_s
     pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, step)
     schedule = CommandSchedule(pressure, command, command_time, step)
