@@ -48,7 +48,7 @@ def simulate_one_stop() -> Callable[..., tuple]:
     plant = train_plant(vehicle)
     shape = (1, *plant.disc_shape)
 
-    def run(effects=(), extra_forces=(), friction_modifiers=(), pressure_bar: float = 3.3):
+    def run(effects=(), extra_forces=(), friction_modifiers=(), pressure_bar: float = 3.3, wheel_brake_forces=()):
         conditions = BatchConditions(
             mass_kg=np.full(1, vehicle.mass_kg("empty")),
             initial_speed_mps=np.full(1, 25.0),
@@ -59,7 +59,7 @@ def simulate_one_stop() -> Callable[..., tuple]:
             initial_disc_temperature_K=np.full(shape, 323.15),
             ambient_temperature_K=np.full(1, 293.15),
         )
-        model = apply_effects(plant, conditions, list(effects))
+        model = apply_effects(plant, conditions, list(effects), wheel_brake_forces=wheel_brake_forces)
         model.extra_forces.extend(extra_forces)
         model.friction_modifiers.extend(friction_modifiers)
         trace = np.full((2, 1, vehicle.n_axles), pressure_bar)

@@ -272,3 +272,100 @@ def test_an_adhesion_cap_holds_whatever_friction_law_a_synthetic_truth_adds():
         assert capped.any() and (~capped).any(), effect_id
         np.testing.assert_allclose(axle_force_N[capped], limit_N, rtol=1e-12, err_msg=effect_id)
         np.testing.assert_allclose(axle_force_N[~capped], free_N[~capped], rtol=1e-12, err_msg=effect_id)
+
+
+def _stage_context(n_axles: int, per_axle: int, clamp_N: np.ndarray, front_m: float = 400.0):
+    from brakegym.simulator import StageContext
+
+    return StageContext(
+        0.0,
+        np.array([20.0]),
+        np.array([front_m]),
+        np.full(1, VEHICLE.mass_kg("empty")),
+        np.full((n_axles, per_axle, 1), 0.35),
+        clamp_N,
+        np.full((n_axles, per_axle, 1), 400.0),
+        np.zeros((n_axles, per_axle, 1)),
+    )
+
+
+@pytest.mark.parametrize("electrodynamic_share_of_limit", [0.5, 1.6])
+def test_a_brake_force_through_the_wheels_shares_the_adhesion_limit_with_the_pads(electrodynamic_share_of_limit):
+    """Physical bound: an electrodynamic brake acts through the wheels as the pads do, so on a
+    capped axle the pads' force and its share together are the cap. Below the cap both are kept;
+    a share above the cap is held at it and leaves the pads nothing."""
+    from brakegym.effects.hooks import ConstantForce
+    from brakegym.simulator import BatchConditions
+    from brakegym.simulator.hooks import friction_scale
+
+    n_axles, per_axle = PLANT.n_axles, PLANT.discs_per_axle
+    mass = VEHICLE.mass_kg("empty")
+    conditions = BatchConditions(
+        mass_kg=np.full(1, mass),
+        initial_speed_mps=np.full(1, 25.0),
+        initial_mu=np.full((1, n_axles, per_axle), 0.35),
+        power_coefficient_per_s=np.full((1, n_axles, per_axle), 0.008),
+        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
+        initial_friction_temperature_K=np.full((1, n_axles, per_axle), 323.15),
+        initial_disc_temperature_K=np.full((1, n_axles, per_axle), 323.15),
+        ambient_temperature_K=np.full(1, 293.15),
+    )
+    adhesion = 0.05
+    limit_N = adhesion * mass / n_axles * STANDARD_GRAVITY_MPS2
+    electrodynamic_N = electrodynamic_share_of_limit * limit_N * n_axles
+    clamp = np.linspace(0.0, 45e3, n_axles)[:, None, None]
+    context = _stage_context(n_axles, per_axle, clamp)  # every axle on the stretch from 300 m
+    free_pads_N = (PLANT.friction.bounded(context.mu) * clamp).sum(axis=1)[:, 0] * PLANT.radius_ratio
+    share_N = electrodynamic_N / n_axles
+    expected_pads_N = np.minimum(free_pads_N, max(limit_N - share_N, 0.0))
+    expected_wheel_N = min(share_N, limit_N) * n_axles
+    for effect in (
+        make_effect("adhesion_limit", adhesion=adhesion),
+        make_effect("adhesion_section", **{**PATCH, "patch_adhesion": adhesion}),
+    ):
+        model = apply_effects(
+            PLANT, conditions, [effect], wheel_brake_forces=[ConstantForce(np.array([electrodynamic_N]))]
+        )
+        mu = PLANT.friction.bounded(context.mu) * friction_scale(model.friction_modifiers, context)
+        pads_N = (mu * clamp).sum(axis=1)[:, 0] * PLANT.radius_ratio
+        np.testing.assert_allclose(pads_N, expected_pads_N, rtol=1e-12, atol=1e-9, err_msg=effect.id)
+        (wheel_force,) = model.forces_on_train()[-1:]
+        assert wheel_force.force_N(context)[0] == pytest.approx(expected_wheel_N, rel=1e-12), effect.id
+        assert np.all(pads_N + share_N <= np.maximum(limit_N, share_N) + 1e-9)
+    # Off the stretch, the section leaves both untouched.
+    off = _stage_context(n_axles, per_axle, clamp, front_m=100.0)
+    model = apply_effects(
+        PLANT,
+        conditions,
+        [make_effect("adhesion_section", **{**PATCH, "patch_adhesion": adhesion})],
+        wheel_brake_forces=[ConstantForce(np.array([electrodynamic_N]))],
+    )
+    np.testing.assert_allclose(friction_scale(model.friction_modifiers, off), 1.0)
+    assert model.forces_on_train()[-1].force_N(off)[0] == pytest.approx(electrodynamic_N, rel=1e-12)
+
+
+def test_a_train_with_an_electrodynamic_brake_decelerates_no_harder_than_adhesion_allows(simulate_one_stop):
+    """Physical bound in a simulated stop: with an electrodynamic brake of a quarter of the
+    train's weight x 0.07 g beside the pads, the deceleration stays at the adhesion limit plus the
+    running resistance's; without the limit it is harder than that."""
+    from brakegym.effects.hooks import ConstantForce
+
+    adhesion = 0.07
+    mass = VEHICLE.mass_kg("empty")
+    electrodynamic = [ConstantForce(np.array([0.25 * adhesion * mass * STANDARD_GRAVITY_MPS2]))]
+    _, limited = simulate_one_stop(
+        [make_effect("adhesion_limit", adhesion=adhesion)], wheel_brake_forces=electrodynamic
+    )
+    _, free = simulate_one_stop(wheel_brake_forces=electrodynamic)
+    speed = limited.speed_mps[:, 0]
+    decel = -np.gradient(speed, limited.time_s)
+    moving = speed > 2.0
+    resistance = VEHICLE.running_resistance
+    bound = (
+        adhesion * STANDARD_GRAVITY_MPS2
+        + (resistance.A_N + resistance.B_N_per_mps * speed + resistance.C_N_per_mps2 * speed**2) / mass
+    )
+    assert np.all(decel[moving] <= bound[moving] + 1e-3)
+    assert np.max(decel[moving]) > bound[moving].min() - 0.02  # the cap is reached
+    free_decel = -np.gradient(free.speed_mps[:, 0], free.time_s)
+    assert np.max(free_decel[free.speed_mps[:, 0] > 2.0]) > np.max(bound[moving]) + 0.05

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import config as cfg
-from ..simulator import BatchConditions, FrictionModifier, Plant
+from ..simulator import BatchConditions, ExtraForce, FrictionModifier, Plant
 from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, LocatedStretch, ParameterSpec, SensorModel, Value
 from .friction import AdhesionLimit, AdhesionSection, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
@@ -95,12 +95,15 @@ def apply_effects(
     conditions: BatchConditions,
     effects: Sequence[Effect] = (),
     friction_modifiers: Sequence[FrictionModifier] = (),
+    wheel_brake_forces: Sequence[ExtraForce] = (),
 ) -> EffectedModel:
     """The model with ``effects`` switched on. The inputs are not changed.
 
     ``friction_modifiers``: factors on the pads' friction from outside the library (a synthetic
     truth's model form), put in before the effects, so that an adhesion cap sees them: adhesion
-    limits the force at the wheel, whatever the pads' friction law."""
+    limits the force at the wheel, whatever the pads' friction law. ``wheel_brake_forces``: brake
+    forces from outside the library that act through the wheels (an electrodynamic brake), which
+    an adhesion cap holds with the pads' force (:attr:`EffectedModel.wheel_brake_forces`)."""
     ids = [e.id for e in effects]
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
@@ -110,6 +113,7 @@ def apply_effects(
         conditions=conditions,
         gravitational_mass_kg=np.asarray(conditions.mass_kg, dtype=float).copy(),
         friction_modifiers=list(friction_modifiers),
+        wheel_brake_forces=list(wheel_brake_forces),
     )
     for effect in sorted(effects, key=lambda e: e.order):  # stable: equal orders keep theirs
         effect.apply(model)

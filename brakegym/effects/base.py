@@ -181,6 +181,10 @@ class EffectedModel:
     friction_modifiers: list[FrictionModifier] = field(default_factory=list)
     sensors: SensorModel = field(default_factory=SensorModel)
     grade: Value = 0.0
+    #: brake forces that act through the wheels besides the pads' (a synthetic truth's
+    #: electrodynamic brake): an adhesion cap holds them with the pads' (see
+    #: :class:`~brakegym.effects.hooks.AdhesionCap`)
+    wheel_brake_forces: list[ExtraForce] = field(default_factory=list)
 
     @property
     def n_trains(self) -> int:
@@ -196,9 +200,22 @@ class EffectedModel:
             self.conditions,
             pressure,
             step_s=step_s,
-            extra_forces=self.extra_forces,
+            extra_forces=self.forces_on_train(),
             friction_modifiers=self.friction_modifiers,
         )
+
+    def forces_on_train(self) -> list[ExtraForce]:
+        """The extra forces, and the wheel brake forces held at any adhesion cap among the
+        friction modifiers."""
+        if not self.wheel_brake_forces:
+            return list(self.extra_forces)
+        from .hooks import AdhesionCap, AdhesionSectionCap, WheelBrakeForceUnderAdhesion  # hooks imports this module
+
+        caps = tuple(m for m in self.friction_modifiers if isinstance(m, AdhesionCap | AdhesionSectionCap))
+        if not caps:
+            return [*self.extra_forces, *self.wheel_brake_forces]
+        n_axles = self.plant.n_axles
+        return [*self.extra_forces, *(WheelBrakeForceUnderAdhesion(f, caps, n_axles) for f in self.wheel_brake_forces)]
 
 
 class Effect:

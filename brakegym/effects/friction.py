@@ -273,7 +273,9 @@ class AdhesionSection(Effect):
 
 def _axle_cap(model: EffectedModel, adhesion: np.ndarray) -> AdhesionCap:
     """Each axle's brake force capped at ``adhesion`` (per train) x axle load x g, the axle load
-    the train's weight shared evenly by its axles; it sees the friction factors already in
-    ``model``."""
+    the train's weight shared evenly by its axles; it sees the friction factors and the wheel
+    brake forces already in ``model``."""
     axle_load_N = model.gravitational_mass_kg / model.plant.n_axles * STANDARD_GRAVITY_MPS2
-    return AdhesionCap(adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant)
+    return AdhesionCap(
+        adhesion * axle_load_N, tuple(model.friction_modifiers), model.plant, tuple(model.wheel_brake_forces)
+    )

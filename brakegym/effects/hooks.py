@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..simulator import FrictionModifier, Plant, StageContext
+from ..simulator import ExtraForce, FrictionModifier, Plant, StageContext
 from .base import Value
 
 
@@ -117,19 +117,37 @@ class AdhesionCap:
     modelled as a factor on the friction force of the axle's discs (force and heat follow it; the
     friction state of Eq. 4 is driven by the clamp force as measured). It must see the factors of
     the other friction effects (``upstream``) to know the force it caps.
+
+    ``wheel_brake_forces``: brake forces that also act through the wheels (an electrodynamic
+    brake), each shared evenly by the axles (ASSUMED: the vehicle configs do not say which axles
+    are motored). The limit holds their sum with the pads' force: the pads get what the wheel
+    forces leave of it, and the wheel forces themselves are held at the limit
+    (:meth:`capped_wheel_force_N`, :class:`WheelBrakeForceUnderAdhesion`).
     """
 
     limit_N: np.ndarray  # (B,), per axle
     upstream: tuple[FrictionModifier, ...]
     plant: Plant
+    wheel_brake_forces: tuple[ExtraForce, ...] = ()
+
+    def wheel_force_per_axle_N(self, context: StageContext) -> np.ndarray | float:
+        """(B,): each axle's share of the wheel brake forces (0.0 without any)."""
+        if not self.wheel_brake_forces:
+            return 0.0
+        return sum(force.force_N(context) for force in self.wheel_brake_forces) / self.plant.n_axles
+
+    def capped_wheel_force_N(self, axle_force_N: np.ndarray, context: StageContext) -> np.ndarray:
+        """(A, B): each axle's wheel brake force ``axle_force_N`` held at the limit."""
+        return np.minimum(axle_force_N, self.limit_N)
 
     def scale(self, context: StageContext) -> np.ndarray:
         mu = self.plant.friction.bounded(context.mu)
         for modifier in self.upstream:
             mu = mu * modifier.scale(context)
         axle_force = (mu * context.clamp_force_N).sum(axis=1) * self.plant.radius_ratio  # (A, B)
-        safe = np.where(axle_force > self.limit_N, axle_force, 1.0)
-        return np.where(axle_force > self.limit_N, self.limit_N / safe, 1.0)[:, None, :]
+        limit = np.maximum(self.limit_N - self.wheel_force_per_axle_N(context), 0.0)  # what the pads may take
+        safe = np.where(axle_force > limit, axle_force, 1.0)
+        return np.where(axle_force > limit, limit / safe, 1.0)[:, None, :]
 
 
 @dataclass(frozen=True)
@@ -160,6 +178,30 @@ class AdhesionSectionCap:
         back = np.maximum(axle_m - 0.5 * spacing, self.start_m)
         return np.clip(front - back, 0.0, spacing) / spacing
 
+    def capped_wheel_force_N(self, axle_force_N: np.ndarray, context: StageContext) -> np.ndarray:
+        """(A, B): each axle's wheel brake force held at the limit while the axle is on the
+        stretch, phased in as the pads' cap is."""
+        share = self.share_on_stretch(context.position_m)
+        return axle_force_N - share * (axle_force_N - self.cap.capped_wheel_force_N(axle_force_N, context))
+
     def scale(self, context: StageContext) -> np.ndarray:
         share = self.share_on_stretch(context.position_m)[:, None, :]
         return 1.0 - share * (1.0 - self.cap.scale(context))
+
+
+@dataclass(frozen=True)
+class WheelBrakeForceUnderAdhesion:
+    """A brake force that acts through the wheels (an electrodynamic brake), shared evenly by the
+    axles and held on each at the adhesion caps ``caps`` (:class:`AdhesionCap`,
+    :class:`AdhesionSectionCap`), which give the pads what it leaves of their limit."""
+
+    force: ExtraForce
+    caps: tuple[AdhesionCap | AdhesionSectionCap, ...]
+    n_axles: int
+
+    def force_N(self, context: StageContext) -> np.ndarray:
+        total = np.asarray(self.force.force_N(context), dtype=float)
+        axle_force = np.broadcast_to(total / self.n_axles, (self.n_axles, total.shape[-1]))
+        for cap in self.caps:
+            axle_force = cap.capped_wheel_force_N(axle_force, context)
+        return axle_force.sum(axis=0)

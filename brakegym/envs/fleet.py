@@ -172,7 +172,7 @@ class TrainFleet:
                 model.conditions,
                 self.pressure,
                 step_s=config.physics_step_s,
-                extra_forces=model.extra_forces,
+                extra_forces=model.forces_on_train(),
                 friction_modifiers=model.friction_modifiers,
                 nominal_running_resistance=self.nominal_plant.running_resistance,
             )
@@ -303,7 +303,7 @@ class TrainFleet:
             conditions = self._effected(conditions).conditions
             model = self._effected(self.episode_conditions)
             self.sim.extra_forces, self.sim.friction_modifiers = (
-                tuple(model.extra_forces),
+                tuple(model.forces_on_train()),
                 tuple(model.friction_modifiers),
             )
             self._set_sensors(model.sensors)

@@ -9,7 +9,10 @@
 - **Effects outside the library** (no effect of :mod:`brakegym.effects` has their form):
   pad friction that depends on the contact pressure, mu x (F_clamp / F_ref)^(-exponent) on every
   disc; and an electrodynamic brake blended into some service stops, a retarding force from the
-  brake command on that fades out linearly below a speed and does not heat the discs.
+  brake command on that fades out linearly below a speed and does not heat the discs. It acts
+  through the wheels, so an adhesion effect of the set holds it with the pads' force
+  (:attr:`brakegym.effects.EffectedModel.wheel_brake_forces`; shared evenly by the axles,
+  ASSUMED: the vehicle configs do not say which are motored).
 
 What was drawn goes to the set's key (:func:`key_entry`), the out-of-library effects under
 ``out_of_library`` with the recordings they act on: a diagnosis must not name a library effect for
@@ -155,15 +158,20 @@ class DrawnModelForm:
     slow_phase_rad: np.ndarray
     electrodynamic: np.ndarray  # (B,) bool: the stop has an ED brake blended in
 
-    def extra_forces(self, command_time_s: np.ndarray) -> list:
-        forces: list = []
-        if self.form.slow_resistance is not None:
-            forces.append(SlowlyVaryingForce(self.slow_amplitude_N, self.slow_period_s, self.slow_phase_rad))
+    def extra_forces(self) -> list:
+        """The forces on the train that do not act through the wheels."""
+        if self.form.slow_resistance is None:
+            return []
+        return [SlowlyVaryingForce(self.slow_amplitude_N, self.slow_period_s, self.slow_phase_rad)]
+
+    def wheel_brake_forces(self, command_time_s: np.ndarray) -> list:
+        """The brake forces that act through the wheels, as the pads' do: an adhesion cap holds
+        them too (:attr:`brakegym.effects.EffectedModel.wheel_brake_forces`)."""
         ed = self.form.electrodynamic_brake
-        if ed is not None and self.electrodynamic.any():
-            force = np.where(self.electrodynamic, ed.force_kN * 1e3, 0.0)
-            forces.append(BlendedBrakeForce(force, command_time_s, kmh_to_mps(ed.fade_out_speed_kmh)))
-        return forces
+        if ed is None or not self.electrodynamic.any():
+            return []
+        force = np.where(self.electrodynamic, ed.force_kN * 1e3, 0.0)
+        return [BlendedBrakeForce(force, command_time_s, kmh_to_mps(ed.fade_out_speed_kmh))]
 
     def friction_modifiers(self) -> list:
         law = self.form.contact_pressure_friction

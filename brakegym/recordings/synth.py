@@ -587,7 +587,15 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
 def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[EffectedModel, GridTrajectory]:
     """The true runs of the set's applications with the effects ``chosen``: (model, grid)."""
     form = drawn.model_form
-    model = apply_effects(drawn.plant, drawn.conditions, chosen, form.friction_modifiers() if form is not None else ())
+    applications = drawn.applications
+    command_time = np.array([a.command_time_s for a in applications])
+    model = apply_effects(
+        drawn.plant,
+        drawn.conditions,
+        chosen,
+        form.friction_modifiers() if form is not None else (),
+        form.wheel_brake_forces(command_time) if form is not None else (),
+    )
     add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
         # The effect sets the set's running resistance; each application still scatters around it.
@@ -595,12 +603,10 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
             model.conditions,
             running_resistance_A_N=np.asarray(model.conditions.running_resistance_A_N) + drawn.scatter_A,
         )
-    applications = drawn.applications
     command = np.stack([a.axle_pressure_bar for a in applications])
-    command_time = np.array([a.command_time_s for a in applications])
     simulator_class = Simulator
     if form is not None:
-        model.extra_forces += form.extra_forces(command_time)
+        model.extra_forces += form.extra_forces()
         simulator_class = form.form.simulator_class
     step = drawn.truth_step_s
     pressure = CommandedPressure(list(drawn.cylinders), drawn.plant.n_axles, step)
