@@ -35,8 +35,9 @@ def load_benchmark() -> Callable[[str], ModuleType]:
 @pytest.fixture(scope="session")
 def simulate_one_stop() -> Callable[..., tuple]:
     """One emu_8axle application, empty, from 25 m/s at a constant 3.3 bar from t = 0 to
-    standstill with 50 degC discs, under ``effects`` and any extra hooks: returns the effected
-    model and the simulated grid (tests of effects on part of the line)."""
+    standstill with 50 degC discs, under ``effects`` and any extra hooks, beginning
+    ``line_position_at_start_m`` along the line: returns the effected model and the simulated grid
+    (tests of effects on part of the line)."""
     from brakegym import config as cfg
     from brakegym.effects import apply_effects
     from brakegym.plants import train_plant
@@ -48,7 +49,14 @@ def simulate_one_stop() -> Callable[..., tuple]:
     plant = train_plant(vehicle)
     shape = (1, *plant.disc_shape)
 
-    def run(effects=(), extra_forces=(), friction_modifiers=(), pressure_bar: float = 3.3, wheel_brake_forces=()):
+    def run(
+        effects=(),
+        extra_forces=(),
+        friction_modifiers=(),
+        pressure_bar: float = 3.3,
+        wheel_brake_forces=(),
+        line_position_at_start_m: float = 0.0,
+    ):
         conditions = BatchConditions(
             mass_kg=np.full(1, vehicle.mass_kg("empty")),
             initial_speed_mps=np.full(1, 25.0),
@@ -59,7 +67,13 @@ def simulate_one_stop() -> Callable[..., tuple]:
             initial_disc_temperature_K=np.full(shape, 323.15),
             ambient_temperature_K=np.full(1, 293.15),
         )
-        model = apply_effects(plant, conditions, list(effects), wheel_brake_forces=wheel_brake_forces)
+        model = apply_effects(
+            plant,
+            conditions,
+            list(effects),
+            wheel_brake_forces=wheel_brake_forces,
+            line_position_at_start_m=np.full(1, line_position_at_start_m),
+        )
         model.extra_forces.extend(extra_forces)
         model.friction_modifiers.extend(friction_modifiers)
         trace = np.full((2, 1, vehicle.n_axles), pressure_bar)

@@ -84,6 +84,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
         model_form=form,
         gradient_profile=args.gradient_profile,
         declare_gradient_profile=not args.conceal_gradient_profile,
+        line_spread_m=args.line_spread_m,
     )
     print(f"wrote {len(result.recordings)} recordings to {result.folder} and the answer key to {result.key_path}")
     return 0
@@ -151,6 +152,17 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
         "--conceal-gradient-profile",
         action="store_true",
         help="keep the gradient profile out of the recordings (in the answer key only): a line to be found",
+    )
+    p.add_argument(
+        "--line-spread-m",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help=(
+            "each application begins at its own place on the line, drawn in 0..M metres and written into its "
+            "metadata (line_position_m); effects on part of the line then lie in metres along it (default 0: "
+            "every application begins at the same place)"
+        ),
     )
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")
     p.set_defaults(func=cmd_synth)

@@ -20,6 +20,12 @@ reports of each recording's measurement chain as the data show it.
   step the values lie on; per pressure transducer its zero reading and the offset removed, and for
   an accelerometer the reading at standstill (its bias less g x gradient; not corrected). Reported
   under ``measurement_chain`` in the diagnosis report.
+- **Line position.** Effects on part of the line (a gradient section, a stretch of low adhesion)
+  are located in metres along the line. Where every recording carries ``line_position_m`` (its
+  first sample's place on the line), positions count from the set's line origin, the lowest of
+  them (:func:`on_set_line`), so that a stretch's bounds hold whatever the line's chainage; where
+  none does, from each recording's own first sample (the recordings then start at one place). A
+  set where some carry it and some do not is refused.
 - **Accelerometer bias.** A bias is a constant on every sample of a recording, which no sample
   noise model holds. Its scatter between recordings, from the standstill readings
   (:func:`accelerometer_bias_sigma`), is drawn afresh for each recording in the parametric
@@ -244,3 +250,26 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
             "0.7 noise sigma), so it cannot be identified and their readings are replayed as they are"
         )
     return out
+
+
+def on_set_line(recordings: Sequence[Recording]) -> tuple[list[Recording], float | None]:
+    """The recordings with each ``line_position_m`` counted from the set's line origin (the lowest
+    of them), and that origin, m; unchanged with None where no recording carries one. ValueError
+    naming the recordings where only some carry it: the others could not be placed on the line."""
+    placed = [r.metadata.line_position_m is not None for r in recordings]
+    if not any(placed):
+        return list(recordings), None
+    if not all(placed):
+        missing = [r.name for r, p in zip(recordings, placed, strict=True) if not p]
+        raise ValueError(
+            f"metadata field 'line_position_m' is given for {sum(placed)} of {len(placed)} recordings but not for "
+            f"{', '.join(missing)}: give it for all of a set's recordings (they are placed on one line) or for none"
+        )
+    origin = min(float(r.metadata.line_position_m) for r in recordings)  # type: ignore[arg-type]
+    rebased = [
+        dataclasses.replace(
+            r, metadata=r.metadata.model_copy(update={"line_position_m": float(r.metadata.line_position_m) - origin})
+        )
+        for r in recordings
+    ]
+    return rebased, origin

@@ -61,7 +61,7 @@ from ..recordings.format import Recording, read_dataset
 from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
-from .inputs import accelerometer_bias_sigma, chain_report, zero_corrected
+from .inputs import accelerometer_bias_sigma, chain_report, on_set_line, zero_corrected
 from .judging import Candidate, Judge, shared_friction_shift
 from .locate import (
     NOISE_CHANNELS,
@@ -105,7 +105,8 @@ class Diagnoser:
         pairs_from: int | None = None,
         rules: DiagnosisRules | None = None,
     ) -> None:
-        self.recordings = list(recordings)
+        # Placed on one line where they carry line positions (counted from the set's origin).
+        self.recordings, self.line_origin_m = on_set_line(recordings)
         vehicles = {r.vehicle.name for r in self.recordings}
         if len(vehicles) > 1:
             raise ValueError(
@@ -137,7 +138,10 @@ class Diagnoser:
             peak_disc_C=float(max(np.nanmax(t) for t in temperatures)) if temperatures else math.inf,
             friction_factors=baseline.x[2 * self.problem.n :],
             nominal_resistance=self.recordings[0].vehicle.running_resistance,
-            run_distance_m=max(float(np.nanmax(r.states["true_position_m"])) for r in baseline.replays),
+            run_distance_m=max(
+                float(np.nanmax(r.states["true_position_m"])) + (r.recording.metadata.line_position_m or 0.0)
+                for r in baseline.replays
+            ),
             stretches=(position_step.stretch(),) if located else (),
         )
 
@@ -268,6 +272,9 @@ class Diagnoser:
         report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["fallback_screening"] = fallback.report_entry(verdict.selected) if fallback is not None else None
         report["position_step"] = position_step.report_entry() if position_step is not None else None
+        # Positions of located effects count from here along the line (None: from each
+        # recording's first sample).
+        report["line_origin_m"] = self.line_origin_m
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()

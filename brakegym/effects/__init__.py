@@ -96,6 +96,7 @@ def apply_effects(
     effects: Sequence[Effect] = (),
     friction_modifiers: Sequence[FrictionModifier] = (),
     wheel_brake_forces: Sequence[ExtraForce] = (),
+    line_position_at_start_m: np.ndarray | None = None,
 ) -> EffectedModel:
     """The model with ``effects`` switched on. The inputs are not changed.
 
@@ -103,7 +104,9 @@ def apply_effects(
     truth's model form), put in before the effects, so that an adhesion cap sees them: adhesion
     limits the force at the wheel, whatever the pads' friction law. ``wheel_brake_forces``: brake
     forces from outside the library that act through the wheels (an electrodynamic brake), which
-    an adhesion cap holds with the pads' force (:attr:`EffectedModel.wheel_brake_forces`)."""
+    an adhesion cap holds with the pads' force (:attr:`brakegym.effects.base.EffectedModel.wheel_brake_forces`).
+    ``line_position_at_start_m``: (B,) where along the line each run begins, m (default 0: each
+    run's own odometry), which effects on part of the line are placed by."""
     ids = [e.id for e in effects]
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
@@ -114,6 +117,9 @@ def apply_effects(
         gravitational_mass_kg=np.asarray(conditions.mass_kg, dtype=float).copy(),
         friction_modifiers=list(friction_modifiers),
         wheel_brake_forces=list(wheel_brake_forces),
+        line_position_at_start_m=(
+            None if line_position_at_start_m is None else np.array(line_position_at_start_m, dtype=float)
+        ),
     )
     for effect in sorted(effects, key=lambda e: e.order):  # stable: equal orders keep theirs
         effect.apply(model)

@@ -185,6 +185,24 @@ class EffectedModel:
     #: electrodynamic brake): an adhesion cap holds them with the pads' (see
     #: :class:`~brakegym.effects.hooks.AdhesionCap`)
     wheel_brake_forces: list[ExtraForce] = field(default_factory=list)
+    #: (B,) where along the line each run begins, m (a recording's ``line_position_m``; 0 where
+    #: positions are each run's own odometry): an effect on part of the line places itself by it
+    line_position_at_start_m: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.line_position_at_start_m is None:
+            self.line_position_at_start_m = np.zeros(self.n_trains)
+        if np.shape(self.line_position_at_start_m) != (self.n_trains,):
+            raise ValueError(
+                f"line_position_at_start_m: one value per run ({self.n_trains}) expected, "
+                f"got shape {np.shape(self.line_position_at_start_m)}"
+            )
+
+    def in_run_odometry(self, start_m: np.ndarray, end_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A stretch of line from ``start_m`` to ``end_m`` ((B,), along the line) in each run's
+        own metres travelled from its start, where the simulator's position counts."""
+        offset = np.asarray(self.line_position_at_start_m, dtype=float)
+        return start_m - offset, end_m - offset
 
     @property
     def n_trains(self) -> int:

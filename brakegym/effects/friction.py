@@ -201,8 +201,8 @@ class AdhesionLimit(Effect):
 class AdhesionSection(Effect):
     """A stretch of low adhesion (leaves, grease, wet rail on part of the line): from
     ``patch_start_m`` for ``patch_length_m`` each axle's brake force is capped at ``patch_adhesion``
-    x axle load x g, as :class:`AdhesionLimit` caps it on the whole line; in metres travelled from
-    each recording's first sample, as :class:`~.track.GradientSection` places a section.
+    x axle load x g, as :class:`AdhesionLimit` caps it on the whole line; in metres along the
+    line, as :class:`~.track.GradientSection` places a section.
 
     The axles are spread over the train's length (:class:`~.hooks.AdhesionSectionCap`), so the
     cap takes hold axle by axle as the train runs onto the stretch. It acts only on applications
@@ -267,7 +267,7 @@ class AdhesionSection(Effect):
         n = model.n_trains
         cap = _axle_cap(model, per_train(self["patch_adhesion"], n, "patch_adhesion"))
         start = per_train(self["patch_start_m"], n, "patch_start_m")
-        end = start + per_train(self["patch_length_m"], n, "patch_length_m")
+        start, end = model.in_run_odometry(start, start + per_train(self["patch_length_m"], n, "patch_length_m"))
         model.friction_modifiers.append(AdhesionSectionCap(cap, start, end, self.TRAIN_LENGTH_M))
 
 

@@ -51,9 +51,10 @@ class Gradient(Effect):
 
 class GradientSection(Effect):
     """A gradient on part of the line: level track, then ``section_gradient_permil`` from
-    ``section_start_m`` for ``section_length_m``, then level again, in metres travelled from each
-    recording's first sample (the recordings of a set start at the same place of the line, as a
-    recording's known gradient profile does, :mod:`brakegym.recordings.metadata`).
+    ``section_start_m`` for ``section_length_m``, then level again, in metres along the line: from
+    each recording's ``line_position_m`` where the recordings carry it, else from each one's first
+    sample (the recordings of the set then start at the same place of the line;
+    :mod:`brakegym.recordings.metadata`).
 
     The force is the gradient's m g p / 1000 times the share of the train on the section, the
     train's weight spread over ``TRAIN_LENGTH_M`` (:class:`~.hooks.GradientSectionForce`). The
@@ -118,11 +119,12 @@ class GradientSection(Effect):
     def apply(self, model: EffectedModel) -> None:
         n = model.n_trains
         start = per_train(self["section_start_m"], n, "section_start_m")
+        start, end = model.in_run_odometry(start, start + per_train(self["section_length_m"], n, "section_length_m"))
         model.extra_forces.append(
             GradientSectionForce(
                 model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2,
                 start,
-                start + per_train(self["section_length_m"], n, "section_length_m"),
+                end,
                 per_train(self["section_gradient_permil"], n, "section_gradient_permil"),
                 self.TRAIN_LENGTH_M,
             )

@@ -129,6 +129,9 @@ class RecordingMetadata(BaseModel):
     decel_source: Literal["accelerometer", "speed"] | None = None
     pad_set: str | None = None
     gradient_profile: GradientProfile | None = None  # the line's known gradient along the run
+    #: where along the line the first sample was taken, metres, counted in the direction of travel
+    #: (docs/recording-format.md): it places the recordings of a set on one line
+    line_position_m: float | None = Field(default=None, allow_inf_nan=False)
     notes: str | None = None
 
     _vehicle: cfg.Vehicle = PrivateAttr()

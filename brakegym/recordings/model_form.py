@@ -11,7 +11,7 @@
   disc; and an electrodynamic brake blended into some service stops, a retarding force from the
   brake command on that fades out linearly below a speed and does not heat the discs. It acts
   through the wheels, so an adhesion effect of the set holds it with the pads' force
-  (:attr:`brakegym.effects.EffectedModel.wheel_brake_forces`; shared evenly by the axles,
+  (:attr:`brakegym.effects.base.EffectedModel.wheel_brake_forces`; shared evenly by the axles,
   ASSUMED: the vehicle configs do not say which are motored).
 
 What was drawn goes to the set's key (:func:`key_entry`), the out-of-library effects under
@@ -166,7 +166,7 @@ class DrawnModelForm:
 
     def wheel_brake_forces(self, command_time_s: np.ndarray) -> list:
         """The brake forces that act through the wheels, as the pads' do: an adhesion cap holds
-        them too (:attr:`brakegym.effects.EffectedModel.wheel_brake_forces`)."""
+        them too (:attr:`brakegym.effects.base.EffectedModel.wheel_brake_forces`)."""
         ed = self.form.electrodynamic_brake
         if ed is None or not self.electrodynamic.any():
             return []

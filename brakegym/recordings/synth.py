@@ -83,6 +83,9 @@ SAMPLE_JITTER_S = 0.01
 DROPOUT_PROBABILITY = 0.002
 INSTRUMENTED_DISC = 1
 SPEED_RANGE_KMH = (60.0, 160.0)
+# The child of the set's seed that draws where the applications begin on the line (after the six
+# of _draw_set: spawning more does not change those).
+LINE_STREAM = 6
 COASTING_RANGE_S = (4.0, 10.0)
 STANDSTILL_RANGE_S = (2.0, 5.0)
 AMBIENT_RANGE_C = (0.0, 30.0)
@@ -204,6 +207,7 @@ class Application:
     ambient_C: float
     initial_disc_C: float
     axle_pressure_bar: np.ndarray
+    line_position_m: float | None = None  # where along the line its first sample is (None: not said)
 
 
 def _round(values: np.ndarray, resolution: float) -> np.ndarray:
@@ -240,6 +244,14 @@ def draw_applications(
             )
         )
     return applications
+
+
+def _placed_on_the_line(applications: list[Application], seed: int, spread_m: float) -> list[Application]:
+    """The applications, each beginning at a place on the line drawn evenly in 0..``spread_m``
+    (to 0.1 m), from a stream of its own: the set's other draws stay what they are without it."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(LINE_STREAM + 1)[LINE_STREAM])
+    positions = np.round(rng.uniform(0.0, spread_m, size=len(applications)), 1)
+    return [dataclasses.replace(app, line_position_m=float(x)) for app, x in zip(applications, positions, strict=True)]
 
 
 def _draw_base_offset(
@@ -297,6 +309,7 @@ def synthesize(
     model_form: ModelForm | None = None,
     gradient_profile: GradientProfile | None = None,
     declare_gradient_profile: bool = True,
+    line_spread_m: float = 0.0,
 ) -> SynthResult:
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
@@ -310,13 +323,26 @@ def synthesize(
     forces, effects outside the library, recorded in the key); ``gradient_profile`` runs every
     application on a line of that gradient profile (from each recording's first sample), written
     into each recording's metadata where ``declare_gradient_profile`` (a known line), else only
-    into the key (a line the diagnosis has to find)."""
+    into the key (a line the diagnosis has to find). ``line_spread_m`` > 0: each application
+    begins at its own place on the line, drawn evenly in 0..``line_spread_m`` m and written into
+    its metadata (``line_position_m``), as recordings taken along a line are; effects on part of
+    the line then lie in metres along it (0: every application begins at 0, and the metadata
+    say nothing)."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
+    if not (math.isfinite(line_spread_m) and line_spread_m >= 0):
+        raise ValueError(f"line spread {line_spread_m} m: must be a non-negative finite number")
+    if line_spread_m > 0 and gradient_profile is not None:
+        raise ValueError(
+            "a gradient profile (from each recording's first sample) and a line spread (recordings beginning at "
+            "different places) cannot be combined: give one of them"
+        )
     drawn = _draw_set(
         n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
     )
+    if line_spread_m > 0:
+        drawn.applications = _placed_on_the_line(drawn.applications, seed, line_spread_m)
     drawn.gradient_profile, drawn.gradient_profile_declared = gradient_profile, declare_gradient_profile
     model, grid = _simulate_truth(drawn, drawn.chosen)
     recordings, truth_rows = _write_recordings(drawn, model, grid, out_dir, noise_scale)
@@ -527,6 +553,7 @@ def _truth_row(drawn: _DrawnSet, b: int, model: EffectedModel, grid: GridTraject
         "initial_disc_C": app.initial_disc_C,
         "ambient_C": app.ambient_C,
         "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
+        **({} if app.line_position_m is None else {"line_position_m": app.line_position_m}),
         **({} if drawn.model_form is None else {"model_form": truth_row_entry(drawn.model_form, b)}),
     }
 
@@ -595,6 +622,7 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
         chosen,
         form.friction_modifiers() if form is not None else (),
         form.wheel_brake_forces(command_time) if form is not None else (),
+        line_position_at_start_m=np.array([a.line_position_m or 0.0 for a in applications]),
     )
     add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
@@ -749,6 +777,7 @@ def _metadata(app: Application, decel_source: str, gradient_profile: GradientPro
         decel_source=decel_source,
         pad_set=app.pad_set,
         gradient_profile=gradient_profile,
+        line_position_m=app.line_position_m,
     )
 
 

@@ -1,0 +1,153 @@
+"""Recordings placed on the line (issue 18, item 3: effects that live along the track, on
+recordings as they come off a train, each stop beginning at its own place): the metadata field
+``line_position_m``, the effects on part of the line placed by it, ``brakegym synth
+--line-spread-m``, and the step along position located in metres along the line."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from brakegym import config as cfg
+from brakegym.diagnosis.inputs import on_set_line
+from brakegym.diagnosis.locate import residual_trace
+from brakegym.diagnosis.pipeline import Diagnoser
+from brakegym.diagnosis.position_steps import find_position_step
+from brakegym.diagnosis.rules import DiagnosisRules
+from brakegym.effects import TRAIN_LENGTH_M, make_effect
+from brakegym.recordings import RecordingError, read_dataset, read_recording
+from brakegym.recordings.synth import EffectRequest, synthesize
+
+REPO = Path(__file__).resolve().parent.parent
+PATCH = {"patch_start_m": 500.0, "patch_length_m": 300.0, "patch_adhesion": 0.07}
+
+pytestmark = pytest.mark.filterwarnings("ignore")
+
+
+@pytest.fixture(autouse=True)
+def checkout_configs(monkeypatch):
+    """This checkout's configs on the search path (an installed brakegym may ship others)."""
+    monkeypatch.setenv(cfg.CONFIG_PATH_ENV, str(REPO / "configs"))
+
+
+def _write(folder: Path, stem: str, line_position) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    time = np.arange(6) * 0.1
+    data = {"time_s": time, "speed_mps": 30.0 - time}
+    for axle in range(1, 9):
+        data[f"p_c_bar_{axle}"] = np.full(6, 3.3)
+    pd.DataFrame(data).to_csv(folder / f"{stem}.csv", index=False)
+    metadata = {
+        "vehicle": "emu_8axle",
+        "load": "empty",
+        "brake_mode": "emergency",
+        "actuation": "EP",
+        "ambient_C": 20.0,
+    }
+    if line_position is not None:
+        metadata["line_position_m"] = line_position
+    (folder / f"{stem}.json").write_text(json.dumps(metadata))
+    return folder / f"{stem}.csv"
+
+
+@pytest.mark.parametrize("value", ["12 km", math.nan, math.inf])
+def test_a_line_position_that_is_no_finite_number_is_refused_naming_the_field(tmp_path, value):
+    path = _write(tmp_path, "r", value)
+    with pytest.raises(RecordingError) as info:
+        read_recording(path)
+    (problem,) = info.value.problems
+    assert problem.field == "line_position_m" and problem.file == str(path.with_suffix(".json"))
+    assert "field 'line_position_m'" in str(info.value)
+
+
+def test_a_set_is_placed_on_the_line_from_its_lowest_line_position(tmp_path):
+    recordings = [read_recording(_write(tmp_path, f"r{i}", x)) for i, x in enumerate((12_250.0, 12_000.0, 12_900.5))]
+    placed, origin = on_set_line(recordings)
+    assert origin == 12_000.0
+    assert [r.metadata.line_position_m for r in placed] == [250.0, 0.0, 900.5]
+    assert [r.metadata.line_position_m for r in recordings] == [12_250.0, 12_000.0, 12_900.5]  # not changed
+    unplaced = [read_recording(_write(tmp_path / "none", f"r{i}", None)) for i in range(2)]
+    assert on_set_line(unplaced) == (unplaced, None)
+
+
+def test_a_set_where_only_some_recordings_are_placed_on_the_line_is_refused_naming_the_others(tmp_path):
+    recordings = [read_recording(_write(tmp_path, stem, x)) for stem, x in (("a", 100.0), ("b", None), ("c", None))]
+    named = r"'line_position_m' is given for 1 of 3 recordings but not for \S*b\.csv, \S*c\.csv"
+    with pytest.raises(ValueError, match=named):
+        on_set_line(recordings)
+    with pytest.raises(ValueError, match="line_position_m"):
+        Diagnoser(recordings)
+
+
+@pytest.mark.parametrize(
+    "effect_id, parameters",
+    [
+        ("adhesion_section", PATCH),
+        ("gradient_section", {"section_start_m": 500.0, "section_length_m": 300.0, "section_gradient_permil": -9.0}),
+    ],
+)
+def test_an_effect_on_part_of_the_line_acts_where_the_run_meets_it(simulate_one_stop, effect_id, parameters):
+    """Invariant: a run that begins 350 m along the line meets a stretch at 500 m of line as a run
+    that begins at 0 meets it at 150 m: the same motion, to rounding (the stop takes some 270 m)."""
+    start_key = next(name for name in parameters if name.endswith("_start_m"))
+    moved = {**parameters, start_key: parameters[start_key] - 350.0}
+    model, on_line = simulate_one_stop([make_effect(effect_id, **parameters)], line_position_at_start_m=350.0)
+    _, from_zero = simulate_one_stop([make_effect(effect_id, **moved)])
+    _, free = simulate_one_stop()
+    np.testing.assert_allclose(on_line.speed_mps, from_zero.speed_mps, rtol=0, atol=1e-9)
+    assert on_line.stop_time_s[0] != pytest.approx(free.stop_time_s[0], rel=1e-3)  # the stretch acts
+    np.testing.assert_allclose(model.line_position_at_start_m, [350.0])
+
+
+@pytest.fixture(scope="module")
+def spread_set(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("spread") / "set"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        synthesize(folder, 8, seed=3, effects=[EffectRequest("adhesion_section", PATCH)], line_spread_m=400.0)
+    return folder
+
+
+def test_synth_places_each_application_on_the_line_and_keeps_the_rest_of_the_set(spread_set, tmp_path):
+    """Each application begins at its own place in 0..400 m, written into its metadata and the
+    key; the set's other draws (campaign, scatter, noise) are those of the same seed without it."""
+    key = json.loads((spread_set.parent / "set_key.json").read_text())
+    positions = [a["line_position_m"] for a in key["applications"]]
+    assert all(0.0 <= x <= 400.0 for x in positions) and len(set(positions)) == len(positions)
+    recordings = read_dataset(spread_set).recordings
+    assert [r.metadata.line_position_m for r in recordings] == positions
+    # Without a located effect the recordings' samples do not depend on where the runs begin.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        synthesize(tmp_path / "a", 3, seed=5, line_spread_m=900.0)
+        synthesize(tmp_path / "b", 3, seed=5)
+    for stem in ("rec_001", "rec_002", "rec_003"):
+        assert (tmp_path / "a" / f"{stem}.csv").read_bytes() == (tmp_path / "b" / f"{stem}.csv").read_bytes()
+        placed = json.loads((tmp_path / "a" / f"{stem}.json").read_text())
+        assert 0.0 <= placed.pop("line_position_m") <= 900.0
+        assert placed == json.loads((tmp_path / "b" / f"{stem}.json").read_text())
+    with pytest.raises(ValueError, match="line spread -1.0 m"):
+        synthesize(tmp_path / "c", 2, seed=1, line_spread_m=-1.0)
+
+
+def test_the_step_along_position_is_located_in_metres_along_the_line(spread_set):
+    """The stops begin up to 400 m apart; the step of the residual lies where the stretch is on
+    the line (its edges half a train length beyond the stretch's ends, counted from the set's
+    origin), to within two bins: in each run's own odometry it would be smeared over 400 m."""
+    diagnoser = Diagnoser(read_dataset(spread_set).recordings)
+    origin = diagnoser.line_origin_m
+    assert origin == min(r.metadata.line_position_m for r in read_dataset(spread_set).recordings)
+    traces = [residual_trace(replayed) for replayed in diagnoser.unmodified_fit().replays]
+    rules = DiagnosisRules()
+    step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
+    start = PATCH["patch_start_m"] - origin
+    assert step.start_m == pytest.approx(start + TRAIN_LENGTH_M / 2, abs=2 * rules.position_step_bin_m)
+    end = start + PATCH["patch_length_m"] + TRAIN_LENGTH_M / 2
+    assert step.end_m == pytest.approx(end, abs=2 * rules.position_step_bin_m)
+    assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
