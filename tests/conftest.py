@@ -36,8 +36,8 @@ def load_benchmark() -> Callable[[str], ModuleType]:
 def simulate_one_stop() -> Callable[..., tuple]:
     """One emu_8axle application, empty, from 25 m/s at a constant 3.3 bar from t = 0 to
     standstill with 50 degC discs, under ``effects`` and any extra hooks, beginning
-    ``line_position_at_start_m`` along the line: returns the effected model and the simulated grid
-    (tests of effects on part of the line)."""
+    ``line_position_at_start_m`` along the line and running ``line_direction_sign`` along it:
+    returns the effected model and the simulated grid (tests of effects on part of the line)."""
     from brakegym import config as cfg
     from brakegym.effects import apply_effects
     from brakegym.plants import train_plant
@@ -56,6 +56,7 @@ def simulate_one_stop() -> Callable[..., tuple]:
         pressure_bar: float = 3.3,
         wheel_brake_forces=(),
         line_position_at_start_m: float = 0.0,
+        line_direction_sign: float = 1.0,
     ):
         conditions = BatchConditions(
             mass_kg=np.full(1, vehicle.mass_kg("empty")),
@@ -73,6 +74,7 @@ def simulate_one_stop() -> Callable[..., tuple]:
             list(effects),
             wheel_brake_forces=wheel_brake_forces,
             line_position_at_start_m=np.full(1, line_position_at_start_m),
+            line_direction_sign=np.full(1, line_direction_sign),
         )
         model.extra_forces.extend(extra_forces)
         model.friction_modifiers.extend(friction_modifiers)

@@ -5,6 +5,7 @@ recordings as they come off a train, each stop beginning at its own place): the 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import warnings
@@ -105,6 +106,46 @@ def test_an_effect_on_part_of_the_line_acts_where_the_run_meets_it(simulate_one_
     np.testing.assert_allclose(model.line_position_at_start_m, [350.0])
 
 
+@pytest.mark.parametrize(
+    "effect_id, parameters, mirrored",
+    [
+        ("adhesion_section", PATCH, {}),
+        (
+            "gradient_section",
+            {"section_start_m": 500.0, "section_length_m": 300.0, "section_gradient_permil": 9.0},
+            {"section_gradient_permil": -9.0},  # run the other way, the rise is a fall
+        ),
+    ],
+)
+def test_a_run_towards_falling_line_positions_meets_a_stretch_from_its_far_end(
+    simulate_one_stop, effect_id, parameters, mirrored
+):
+    """Invariant: a run that begins 1000 m along the line and runs back meets a stretch from 500
+    to 800 m of line after 200 m, as a run from 0 meets one from 200 to 500 m (a section's
+    gradient then with the other sign): the same motion, to rounding."""
+    start_key = next(name for name in parameters if name.endswith("_start_m"))
+    moved = {**parameters, **mirrored, start_key: 1000.0 - 800.0}
+    _, back = simulate_one_stop(
+        [make_effect(effect_id, **parameters)], line_position_at_start_m=1000.0, line_direction_sign=-1.0
+    )
+    _, from_zero = simulate_one_stop([make_effect(effect_id, **moved)])
+    _, free = simulate_one_stop()
+    np.testing.assert_allclose(back.speed_mps, from_zero.speed_mps, rtol=0, atol=1e-9)
+    assert back.stop_time_s[0] != pytest.approx(free.stop_time_s[0], rel=1e-3)
+
+
+def test_a_direction_without_a_line_position_is_refused(tmp_path):
+    path = _write(tmp_path, "r", None)
+    metadata = json.loads(path.with_suffix(".json").read_text())
+    path.with_suffix(".json").write_text(json.dumps({**metadata, "line_direction": "decreasing"}))
+    with pytest.raises(RecordingError, match="'line_direction' = 'decreasing' needs 'line_position_m'"):
+        read_recording(path)
+    path.with_suffix(".json").write_text(json.dumps({**metadata, "line_position_m": 5.0, "line_direction": "up"}))
+    with pytest.raises(RecordingError) as info:
+        read_recording(path)
+    assert [p.field for p in info.value.problems] == ["line_direction"]
+
+
 @pytest.fixture(scope="module")
 def spread_set(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("spread") / "set"
@@ -150,4 +191,36 @@ def test_the_step_along_position_is_located_in_metres_along_the_line(spread_set)
     assert step.start_m == pytest.approx(start + TRAIN_LENGTH_M / 2, abs=2 * rules.position_step_bin_m)
     end = start + PATCH["patch_length_m"] + TRAIN_LENGTH_M / 2
     assert step.end_m == pytest.approx(end, abs=2 * rules.position_step_bin_m)
+    assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
+
+
+def test_stops_run_both_ways_locate_the_stretch_at_one_place_on_the_line(spread_set):
+    """The spread set's stops 2, 4, 6 and 8 read on a line numbered the other way: each then
+    begins at 1300 m less its place and runs towards falling positions, and the stretch, from 500
+    to 800 m, lies at 1300 - 800 to 1300 - 500 m: the same place. Run back, a stop's step edges
+    lie half a train length before the stretch's ends instead of beyond them, so the step lies
+    within that half length and two bins of the stretch."""
+    recordings = read_dataset(spread_set).recordings
+    both_ways = [
+        r
+        if index % 2 == 0
+        else dataclasses.replace(
+            r,
+            metadata=r.metadata.model_copy(
+                update={"line_position_m": 1300.0 - r.metadata.line_position_m, "line_direction": "decreasing"}
+            ),
+        )
+        for index, r in enumerate(recordings)
+    ]
+    diagnoser = Diagnoser(both_ways)
+    reached = [r.metadata.on_line_m(np.array([0.0, 300.0])) for r in both_ways[1::2]]
+    assert all(x[1] < x[0] for x in reached)
+    traces = [residual_trace(replayed) for replayed in diagnoser.unmodified_fit().replays]
+    rules = DiagnosisRules()
+    step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
+    origin = diagnoser.line_origin_m
+    tolerance = TRAIN_LENGTH_M / 2 + 2 * rules.position_step_bin_m
+    assert step.start_m + origin == pytest.approx(PATCH["patch_start_m"], abs=tolerance)
+    end = PATCH["patch_start_m"] + PATCH["patch_length_m"]
+    assert step.end_m + origin == pytest.approx(end, abs=tolerance)
     assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share

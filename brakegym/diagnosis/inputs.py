@@ -44,7 +44,7 @@ import numpy as np
 
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 from ..recordings.format import Recording
-from ..recordings.replay import standstill_index
+from ..recordings.replay import measured_distance_m, standstill_index
 from .locate import brake_onset_s
 from .noise import ChannelNoise, channel_samples, quantisation_step, zero_reading
 
@@ -253,9 +253,11 @@ def chain_report(recordings: Sequence[Recording]) -> dict[str, Any]:
 
 
 def on_set_line(recordings: Sequence[Recording]) -> tuple[list[Recording], float | None]:
-    """The recordings with each ``line_position_m`` counted from the set's line origin (the lowest
-    of them), and that origin, m; unchanged with None where no recording carries one. ValueError
-    naming the recordings where only some carry it: the others could not be placed on the line."""
+    """The recordings with each ``line_position_m`` counted from the set's line origin, and that
+    origin, m: the lowest line position any of them reaches (a recording run towards falling
+    positions reaches below its first sample's by the distance it covers). Unchanged with None
+    where no recording carries one. ValueError naming the recordings where only some carry it:
+    the others could not be placed on the line."""
     placed = [r.metadata.line_position_m is not None for r in recordings]
     if not any(placed):
         return list(recordings), None
@@ -265,11 +267,20 @@ def on_set_line(recordings: Sequence[Recording]) -> tuple[list[Recording], float
             f"metadata field 'line_position_m' is given for {sum(placed)} of {len(placed)} recordings but not for "
             f"{', '.join(missing)}: give it for all of a set's recordings (they are placed on one line) or for none"
         )
-    origin = min(float(r.metadata.line_position_m) for r in recordings)  # type: ignore[arg-type]
+    origin = min(_lowest_line_position_m(r) for r in recordings)
     rebased = [
         dataclasses.replace(
-            r, metadata=r.metadata.model_copy(update={"line_position_m": float(r.metadata.line_position_m) - origin})
+            r, metadata=r.metadata.model_copy(update={"line_position_m": r.metadata.line_position_m - origin})
         )
         for r in recordings
     ]
     return rebased, origin
+
+
+def _lowest_line_position_m(recording: Recording) -> float:
+    """The lowest line position a placed recording reaches: its first sample's, or where it runs
+    towards falling positions, that less the distance it covers."""
+    start = float(recording.metadata.line_position_m)  # type: ignore[arg-type]
+    if recording.metadata.line_direction_sign > 0:
+        return start
+    return start - float(np.nanmax(measured_distance_m(recording)))

@@ -122,7 +122,7 @@ def residual_trace(replayed: Replay) -> ResidualTrace:
     axes = {
         # Along the line, where the recording is placed on it (an effect on part of the line is
         # located there, the same place for every recording).
-        "position_m": states["true_position_m"].to_numpy() + (recording.metadata.line_position_m or 0.0),
+        "position_m": recording.metadata.on_line_m(states["true_position_m"].to_numpy()),
         "speed_mps": states["true_speed_mps"].to_numpy(),
         "time_since_brake_onset_s": time - brake_onset_s(recording),
         "dissipated_energy_MJ": states["friction_heat_MJ_per_disc"].to_numpy(),

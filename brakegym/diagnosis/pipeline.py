@@ -139,7 +139,7 @@ class Diagnoser:
             friction_factors=baseline.x[2 * self.problem.n :],
             nominal_resistance=self.recordings[0].vehicle.running_resistance,
             run_distance_m=max(
-                float(np.nanmax(r.states["true_position_m"])) + (r.recording.metadata.line_position_m or 0.0)
+                float(np.nanmax(r.recording.metadata.on_line_m(r.states["true_position_m"].to_numpy())))
                 for r in baseline.replays
             ),
             stretches=(position_step.stretch(),) if located else (),

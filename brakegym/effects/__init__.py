@@ -97,6 +97,7 @@ def apply_effects(
     friction_modifiers: Sequence[FrictionModifier] = (),
     wheel_brake_forces: Sequence[ExtraForce] = (),
     line_position_at_start_m: np.ndarray | None = None,
+    line_direction_sign: np.ndarray | None = None,
 ) -> EffectedModel:
     """The model with ``effects`` switched on. The inputs are not changed.
 
@@ -106,7 +107,8 @@ def apply_effects(
     forces from outside the library that act through the wheels (an electrodynamic brake), which
     an adhesion cap holds with the pads' force (:attr:`brakegym.effects.base.EffectedModel.wheel_brake_forces`).
     ``line_position_at_start_m``: (B,) where along the line each run begins, m (default 0: each
-    run's own odometry), which effects on part of the line are placed by."""
+    run's own odometry), and ``line_direction_sign`` (B,) which way it runs (+1, the default:
+    towards growing positions; -1), which effects on part of the line are placed by."""
     ids = [e.id for e in effects]
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
@@ -120,6 +122,7 @@ def apply_effects(
         line_position_at_start_m=(
             None if line_position_at_start_m is None else np.array(line_position_at_start_m, dtype=float)
         ),
+        line_direction_sign=None if line_direction_sign is None else np.array(line_direction_sign, dtype=float),
     )
     for effect in sorted(effects, key=lambda e: e.order):  # stable: equal orders keep theirs
         effect.apply(model)

@@ -188,21 +188,31 @@ class EffectedModel:
     #: (B,) where along the line each run begins, m (a recording's ``line_position_m``; 0 where
     #: positions are each run's own odometry): an effect on part of the line places itself by it
     line_position_at_start_m: np.ndarray | None = None
+    #: (B,) +1 where a run goes towards growing line positions, -1 where towards falling ones
+    line_direction_sign: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.line_position_at_start_m is None:
             self.line_position_at_start_m = np.zeros(self.n_trains)
-        if np.shape(self.line_position_at_start_m) != (self.n_trains,):
-            raise ValueError(
-                f"line_position_at_start_m: one value per run ({self.n_trains}) expected, "
-                f"got shape {np.shape(self.line_position_at_start_m)}"
-            )
+        if self.line_direction_sign is None:
+            self.line_direction_sign = np.ones(self.n_trains)
+        for name in ("line_position_at_start_m", "line_direction_sign"):
+            if np.shape(getattr(self, name)) != (self.n_trains,):
+                raise ValueError(
+                    f"{name}: one value per run ({self.n_trains}) expected, got shape {np.shape(getattr(self, name))}"
+                )
+        if not np.all(np.abs(self.line_direction_sign) == 1.0):
+            raise ValueError(f"line_direction_sign: +1 or -1 per run, got {self.line_direction_sign}")
 
     def in_run_odometry(self, start_m: np.ndarray, end_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A stretch of line from ``start_m`` to ``end_m`` ((B,), along the line) in each run's
-        own metres travelled from its start, where the simulator's position counts."""
+        own metres travelled from its start, where the simulator's position counts: (nearer end,
+        farther end) as the run meets them."""
         offset = np.asarray(self.line_position_at_start_m, dtype=float)
-        return start_m - offset, end_m - offset
+        sign = np.asarray(self.line_direction_sign, dtype=float)
+        near = np.where(sign > 0, start_m - offset, offset - end_m)
+        far = np.where(sign > 0, end_m - offset, offset - start_m)
+        return near, far
 
     @property
     def n_trains(self) -> int:

@@ -54,7 +54,8 @@ class GradientSection(Effect):
     ``section_start_m`` for ``section_length_m``, then level again, in metres along the line: from
     each recording's ``line_position_m`` where the recordings carry it, else from each one's first
     sample (the recordings of the set then start at the same place of the line;
-    :mod:`brakegym.recordings.metadata`).
+    :mod:`brakegym.recordings.metadata`). The gradient is the rise over run towards growing
+    positions: a recording run the other way (``line_direction``) meets it with the other sign.
 
     The force is the gradient's m g p / 1000 times the share of the train on the section, the
     train's weight spread over ``TRAIN_LENGTH_M`` (:class:`~.hooks.GradientSectionForce`). The
@@ -125,7 +126,8 @@ class GradientSection(Effect):
                 model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2,
                 start,
                 end,
-                per_train(self["section_gradient_permil"], n, "section_gradient_permil"),
+                # Rise over run along growing line positions: a run the other way climbs it as a fall.
+                per_train(self["section_gradient_permil"], n, "section_gradient_permil") * model.line_direction_sign,
                 self.TRAIN_LENGTH_M,
             )
         )

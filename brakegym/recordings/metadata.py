@@ -12,6 +12,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -132,6 +133,9 @@ class RecordingMetadata(BaseModel):
     #: where along the line the first sample was taken, metres, counted in the direction of travel
     #: (docs/recording-format.md): it places the recordings of a set on one line
     line_position_m: float | None = Field(default=None, allow_inf_nan=False)
+    #: which way the recording runs along the line: towards growing positions (the default) or
+    #: falling ones (a stop on the way back); only with ``line_position_m``
+    line_direction: Literal["increasing", "decreasing"] | None = None
     notes: str | None = None
 
     _vehicle: cfg.Vehicle = PrivateAttr()
@@ -174,6 +178,25 @@ class RecordingMetadata(BaseModel):
             )
         self._vehicle = _resolve_vehicle(self.vehicle)
         return self
+
+    @model_validator(mode="after")
+    def _direction_with_a_position(self) -> RecordingMetadata:
+        if self.line_direction is not None and self.line_position_m is None:
+            raise ValueError(
+                f"'line_direction' = {self.line_direction!r} needs 'line_position_m' (where on the line the "
+                "recording begins)"
+            )
+        return self
+
+    @property
+    def line_direction_sign(self) -> float:
+        """+1 where the recording runs towards growing line positions, -1 where towards falling."""
+        return -1.0 if self.line_direction == "decreasing" else 1.0
+
+    def on_line_m(self, odometry_m: np.ndarray) -> np.ndarray:
+        """Positions along the line of the points ``odometry_m`` metres travelled from the first
+        sample (the odometry itself where the recording is not placed on the line)."""
+        return (self.line_position_m or 0.0) + self.line_direction_sign * np.asarray(odometry_m, dtype=float)
 
     @property
     def vehicle_config(self) -> cfg.Vehicle:

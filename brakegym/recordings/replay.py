@@ -145,12 +145,6 @@ def add_gradient_profiles(model: EffectedModel, profiles: Sequence[GradientProfi
     model.extra_forces.append(GradientProfileForce(weight_N * STANDARD_GRAVITY_MPS2, starts, gradients))
 
 
-def line_positions_m(recordings: Sequence[Recording]) -> np.ndarray:
-    """(B,) where along the line each recording begins (its ``line_position_m``, else 0: positions
-    are then its own odometry), m."""
-    return np.array([r.metadata.line_position_m or 0.0 for r in recordings], dtype=float)
-
-
 def bridged_pressures_bar(recording: Recording) -> np.ndarray:
     """The recording's pressures (samples, axles) with missing samples bridged linearly."""
     time = recording.time_s - recording.time_s[0]
@@ -277,7 +271,13 @@ def replay_batch(
         initial_disc_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
         ambient_temperature_K=np.array([r.metadata.ambient_C + ZERO_CELSIUS_K for r in recordings]),
     )
-    model = apply_effects(plant, conditions, effects, line_position_at_start_m=line_positions_m(recordings))
+    model = apply_effects(
+        plant,
+        conditions,
+        effects,
+        line_position_at_start_m=np.array([r.metadata.line_position_m or 0.0 for r in recordings]),
+        line_direction_sign=np.array([r.metadata.line_direction_sign for r in recordings]),
+    )
     add_gradient_profiles(model, [r.metadata.gradient_profile for r in recordings])
 
     # The true initial speed: the first speed sample seen through the (possibly scaled) sensor.
