@@ -133,7 +133,7 @@ class RecordingMetadata(BaseModel):
     #: where along the line the first sample was taken, metres, counted in the direction of travel
     #: (docs/recording-format.md): it places the recordings of a set on one line
     line_position_m: float | None = Field(default=None, allow_inf_nan=False)
-    #: which way the recording runs along the line: towards growing positions (the default) or
+    #: the way the recording runs along the line, towards growing positions (the default) or
     #: falling ones (a stop on the way back); only with ``line_position_m``
     line_direction: Literal["increasing", "decreasing"] | None = None
     notes: str | None = None
