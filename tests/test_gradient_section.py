@@ -220,3 +220,8 @@ def test_the_markdown_report_lists_what_pointed_the_search():
     )
     assert lines[3] == "  - force_quadratic_in_speed -> running_resistance: selected"
     assert found_lines({"candidates": [], "position_step": None, "fallback_screening": None}) == []
+    # Recordings placed on the line: the positions count from its origin.
+    placed = found_lines({**report, "line_origin_m": 12000.0})
+    assert placed[0].startswith("- Positions along the line (the step below, the start of a section or stretch) count ")
+    assert "from 12000 m, the lowest line position the recordings reach" in placed[0]
+    assert placed[1].startswith("- Step of the residual deceleration along position (while braking): 310 to 720 m al")
