@@ -227,6 +227,11 @@ def test_every_effect_has_its_public_parameters_and_a_no_effect_value():
         "temperature_sensor_lag": ["tau_s"],
         "gradient_section": ["section_start_m", "section_length_m", "section_gradient_permil"],
         "adhesion_section": ["patch_start_m", "patch_length_m", "patch_adhesion"],
+        "gradient_sections": [
+            f"{which}_section_{name}"
+            for which in ("first", "second")
+            for name in ("start_m", "length_m", "gradient_permil")
+        ],
     }
     assert {k: [p.name for p in cls.parameters] for k, cls in EFFECTS.items()} == expected
     nominal = _initial_brake_force_N([])
@@ -306,4 +311,6 @@ def test_a_fit_at_a_search_bound_is_told_from_one_at_a_physical_bound():
         ("temperature_sensor_lag", "tau_s", "lower"),
         ("gradient_section", "section_start_m", "lower"),
         ("adhesion_section", "patch_start_m", "lower"),
+        ("gradient_sections", "first_section_start_m", "lower"),
+        ("gradient_sections", "second_section_start_m", "lower"),
     }

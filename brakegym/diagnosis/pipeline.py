@@ -129,10 +129,12 @@ class Diagnoser:
         self.n_discs = train_plant(self.recordings[0].vehicle).n_discs
         self._residual: BaselineResidual | None = None
 
-    def _evidence(self, baseline: FitResult, position_step: PositionStep | None) -> Evidence:
+    def _evidence(self, baseline: FitResult, position_steps: Sequence[PositionStep]) -> Evidence:
+        """What the set shows of itself; ``position_steps``: the steps along position, the first
+        and, in what it leaves, a second (:meth:`_position_steps`), those located screened."""
         decels = [r.channel(DECEL) for r in self.recordings if r.channel(DECEL) is not None]
         temperatures = [r.channel(DISC_TEMPERATURE) for r in self.recordings if r.channel(DISC_TEMPERATURE) is not None]
-        located = position_step is not None and position_step.explained_share >= self.rules.position_step_min_share
+        located = [step.stretch() for step in position_steps if self._located(step)]
         return Evidence(
             peak_decel_mps2=float(max(np.nanpercentile(d, 99) for d in decels)) if decels else math.inf,
             peak_disc_C=float(max(np.nanmax(t) for t in temperatures)) if temperatures else math.inf,
@@ -142,14 +144,24 @@ class Diagnoser:
                 float(np.nanmax(r.recording.metadata.on_line_m(r.states["true_position_m"].to_numpy())))
                 for r in baseline.replays
             ),
-            stretches=(position_step.stretch(),) if located else (),
+            stretches=tuple(located[:1]),
+            profile_stretches=tuple(located) if len(located) == 2 else (),
         )
 
-    def _position_step(self, weighting: Weighting, baseline: FitResult) -> PositionStep | None:
+    def _located(self, step: PositionStep) -> bool:
+        return step.explained_share >= self.rules.position_step_min_share
+
+    def _position_steps(self, weighting: Weighting, baseline: FitResult) -> list[PositionStep]:
         """Where the unmodified model's residual steps along position (an effect on part of the
-        line is screened there)."""
+        line is screened there): the step that explains most, and where it is located, a second
+        one in what it leaves (a profile of two sections)."""
         traces = self._baseline_residual(weighting, baseline).traces
-        return find_position_step(traces, self.rules.position_step_bin_m, TRAIN_LENGTH_M)
+        bin_m = self.rules.position_step_bin_m
+        first = find_position_step(traces, bin_m, TRAIN_LENGTH_M)
+        if first is None:
+            return []
+        second = find_position_step(traces, bin_m, TRAIN_LENGTH_M, earlier=(first,)) if self._located(first) else None
+        return [first] if second is None else [first, second]
 
     def unmodified_fit(self) -> FitResult:
         """The unmodified model fitted to the recordings: each recording's nuisance alone."""
@@ -187,7 +199,7 @@ class Diagnoser:
                 raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
-        evidence = self._evidence(baseline, self._position_step(weighting, baseline))
+        evidence = self._evidence(baseline, self._position_steps(weighting, baseline))
         nuisance = baseline.x[len(baseline.free) :]
         if start is None:
             start, nuisance = self._screened_start(ids, fixed, weighting, evidence, baseline)
@@ -236,8 +248,8 @@ class Diagnoser:
         problem, rules = self.problem, self.rules
         baseline = self.unmodified_fit()
         weighting = self._weighting(baseline)
-        position_step = self._position_step(weighting, baseline)
-        evidence = self._evidence(baseline, position_step)
+        position_steps = self._position_steps(weighting, baseline)
+        evidence = self._evidence(baseline, position_steps)
         judge = Judge(problem, weighting, rules, evidence, baseline)
         screening = Screening(problem, weighting, rules, evidence, self.n_discs, baseline)
         screened = screening.run()
@@ -271,7 +283,9 @@ class Diagnoser:
         )
         report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["fallback_screening"] = fallback.report_entry(verdict.selected) if fallback is not None else None
-        report["position_step"] = position_step.report_entry() if position_step is not None else None
+        report["position_step"] = position_steps[0].report_entry() if position_steps else None
+        # In what the first step leaves: with it, a profile of two sections is screened.
+        report["second_position_step"] = position_steps[1].report_entry() if len(position_steps) > 1 else None
         # Positions of located effects count from here along the line (None: from each
         # recording's first sample).
         report["line_origin_m"] = self.line_origin_m

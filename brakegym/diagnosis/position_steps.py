@@ -71,23 +71,33 @@ class PositionStep:
         }
 
 
-def _braking_samples(traces: Sequence[ResidualTrace]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per recording (position, residual deceleration about its own mean) while braking."""
+def _braking_samples(
+    traces: Sequence[ResidualTrace], earlier: Sequence[PositionStep] = ()
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per recording (position, residual deceleration about its own mean) while braking, less the
+    ``earlier`` steps (each its size times its stretch's indicator about the recording's mean)."""
     out = []
     for trace in traces:
         position = trace.axes["position_m"]
         rows = trace.braking & ~np.isnan(trace.kinematic_decel) & ~np.isnan(position)
         if rows.sum() >= 2:
             decel = trace.kinematic_decel[rows]
-            out.append((position[rows], decel - decel.mean()))
+            centred = decel - decel.mean()
+            for step in earlier:
+                on = ((position[rows] >= step.start_m) & (position[rows] < step.end_m)).astype(float)
+                centred = centred - step.decel_step_mps2 * (on - on.mean())
+            out.append((position[rows], centred))
     return out
 
 
-def find_position_step(traces: Sequence[ResidualTrace], bin_m: float, min_length_m: float) -> PositionStep | None:
+def find_position_step(
+    traces: Sequence[ResidualTrace], bin_m: float, min_length_m: float, earlier: Sequence[PositionStep] = ()
+) -> PositionStep | None:
     """The stretch of position whose step explains most of the braking residual deceleration, with
     one offset per recording (module docstring); None where the recordings do not span two
-    stretches of ``min_length_m``."""
-    samples = _braking_samples(traces)
+    stretches of ``min_length_m``. With ``earlier`` steps, in what they leave of the residual (a
+    second section of a profile): its share is of that."""
+    samples = _braking_samples(traces, earlier)
     if not samples:
         return None
     top = max(float(position.max()) for position, _ in samples)

@@ -42,7 +42,7 @@ from ..simulator import BatchConditions, ExtraForce, FrictionModifier, Plant
 from .base import TRAIN_LENGTH_M, Effect, EffectedModel, Evidence, LocatedStretch, ParameterSpec, SensorModel, Value
 from .friction import AdhesionLimit, AdhesionSection, FrictionLevel, ThermalFade, WetPads
 from .sensors import SpeedSensorScale, TemperatureSensorLag
-from .track import Gradient, GradientSection, RunningResistanceEffect
+from .track import Gradient, GradientSection, GradientSections, RunningResistanceEffect
 from .vehicle import BrakeUnitFailure, RotatingMass
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -60,6 +60,7 @@ EFFECTS: dict[str, type[Effect]] = {
         TemperatureSensorLag,
         GradientSection,
         AdhesionSection,
+        GradientSections,
     )
 }
 
@@ -165,6 +166,7 @@ __all__ = [
     "FrictionLevel",
     "Gradient",
     "GradientSection",
+    "GradientSections",
     "LocatedStretch",
     "ParameterSpec",
     "RotatingMass",

@@ -108,8 +108,8 @@ TRAIN_LENGTH_M = 50.0
 @dataclass(frozen=True)
 class LocatedStretch:
     """A stretch of the line where the unmodified model's residual deceleration steps, as the
-    diagnosis locates it (:mod:`brakegym.diagnosis.position_steps`), in metres travelled from each
-    recording's first sample."""
+    diagnosis locates it (:mod:`brakegym.diagnosis.position_steps`), in metres along the line
+    (each recording's own odometry where the recordings are not placed on it)."""
 
     start_m: float
     end_m: float
@@ -144,6 +144,9 @@ class Evidence:
     run_distance_m: float = float("inf")  # the longest distance a recording covers from its first sample
     #: where the unmodified model's residual locates something that acts on part of the line
     stretches: tuple[LocatedStretch, ...] = ()
+    #: two steps located one after the other, the second in what the first leaves of the
+    #: residual: a profile of two sections (empty unless both are located)
+    profile_stretches: tuple[LocatedStretch, ...] = ()
 
 
 def on_part_of_the_run(start_m: float, end_m: float, evidence: Evidence) -> bool:

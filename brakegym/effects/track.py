@@ -29,7 +29,7 @@ class Gradient(Effect):
             40.0,
             0.0,
             ((-15.0, -2.0), (2.0, 15.0)),
-            description="rise over run x 1000 in the direction of travel",
+            description="rise over run x 1000 towards growing positions along the line",
         ),
     )
     RELEVANT_PERMIL = 1.0
@@ -85,7 +85,7 @@ class GradientSection(Effect):
             40.0,
             0.0,
             ((-15.0, -4.0), (4.0, 15.0)),
-            description="rise over run x 1000 in the direction of travel",
+            description="rise over run x 1000 towards growing positions along the line",
         ),
     )
     TRAIN_LENGTH_M = TRAIN_LENGTH_M
@@ -118,19 +118,83 @@ class GradientSection(Effect):
         return points
 
     def apply(self, model: EffectedModel) -> None:
-        n = model.n_trains
-        start = per_train(self["section_start_m"], n, "section_start_m")
-        start, end = model.in_run_odometry(start, start + per_train(self["section_length_m"], n, "section_length_m"))
-        model.extra_forces.append(
-            GradientSectionForce(
-                model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2,
-                start,
-                end,
-                # Rise over run along growing line positions: a run the other way climbs it as a fall.
-                per_train(self["section_gradient_permil"], n, "section_gradient_permil") * model.line_direction_sign,
-                self.TRAIN_LENGTH_M,
-            )
+        model.extra_forces.append(_section_force(model, self, "section"))
+
+
+class GradientSections(Effect):
+    """A profile of two sections of gradient, level track elsewhere: each as a
+    :class:`GradientSection` (``first_section_*``, ``second_section_*``; where they overlap their
+    gradients add). Screened only where the residual along position locates two steps, the second
+    in what the first leaves (:attr:`~brakegym.effects.base.Evidence.profile_stretches`): the
+    first section at the nearer of them. Where the data hold one section only, the single
+    section's fewer parameters win by the same rules."""
+
+    id = "gradient_sections"
+    parameters = tuple(
+        ParameterSpec(
+            f"{which}_{spec.name}",
+            spec.unit,
+            spec.lower,
+            spec.upper,
+            spec.no_effect,
+            ranges,
+            description=f"{spec.description} ({which} section)",
+            lower_is_physical=spec.lower_is_physical,
         )
+        for which, section_ranges in (
+            ("first", (((100.0, 300.0),), ((200.0, 400.0),), ((-15.0, -4.0), (4.0, 15.0)))),
+            ("second", (((650.0, 850.0),), ((200.0, 400.0),), ((-15.0, -4.0), (4.0, 15.0)))),
+        )
+        for spec, ranges in zip(GradientSection.parameters, section_ranges, strict=True)
+    )
+    TRAIN_LENGTH_M = TRAIN_LENGTH_M
+    grid_screened = False
+    separating_measurements = {
+        "gradient_section": "recordings that brake across both sections (each at its place on the line)",
+    }
+
+    @classmethod
+    def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
+        """Both sections relevant as single sections are (:meth:`GradientSection.is_relevant`)."""
+        return all(
+            GradientSection.is_relevant(
+                {spec.name: parameters[f"{which}_{spec.name}"] for spec in GradientSection.parameters}, evidence
+            )
+            for which in ("first", "second")
+        )
+
+    @classmethod
+    def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
+        """The two sections that would leave the two located steps, the nearer first."""
+        if len(evidence.profile_stretches) != 2:
+            return []
+        sections = sorted(evidence.profile_stretches, key=lambda stretch: stretch.start_m)
+        point = []
+        for stretch in sections:
+            start, length = stretch.section(cls.TRAIN_LENGTH_M)
+            point += [start, length, stretch.gradient_permil]
+        return [np.array(point)]
+
+    def apply(self, model: EffectedModel) -> None:
+        model.extra_forces += [
+            _section_force(model, self, "first_section"),
+            _section_force(model, self, "second_section"),
+        ]
+
+
+def _section_force(model: EffectedModel, effect: Effect, prefix: str) -> GradientSectionForce:
+    """The force of the section whose parameters are ``<prefix>_start_m``, ``<prefix>_length_m``
+    and ``<prefix>_gradient_permil`` of ``effect``, placed on each run by its line position."""
+    n = model.n_trains
+    start = per_train(effect[f"{prefix}_start_m"], n, f"{prefix}_start_m")
+    start, end = model.in_run_odometry(start, start + per_train(effect[f"{prefix}_length_m"], n, f"{prefix}_length_m"))
+    # Rise over run along growing line positions: a run the other way climbs it as a fall.
+    gradient = (
+        per_train(effect[f"{prefix}_gradient_permil"], n, f"{prefix}_gradient_permil") * model.line_direction_sign
+    )
+    return GradientSectionForce(
+        model.gravitational_mass_kg * STANDARD_GRAVITY_MPS2, start, end, gradient, TRAIN_LENGTH_M
+    )
 
 
 class RunningResistanceEffect(Effect):
