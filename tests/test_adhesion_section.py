@@ -227,35 +227,16 @@ def test_an_adhesion_cap_holds_whatever_friction_law_a_synthetic_truth_adds():
     ``real_train`` form's contact-pressure friction) must act before the cap, not on top of it:
     on a capped axle the force is the cap, with the law or without it."""
     from brakegym.recordings.model_form import ContactPressureFactor
-    from brakegym.simulator import BatchConditions, StageContext
     from brakegym.simulator.hooks import friction_scale
 
     n_axles, per_axle = PLANT.n_axles, PLANT.discs_per_axle
-    conditions = BatchConditions(
-        mass_kg=np.full(1, VEHICLE.mass_kg("empty")),
-        initial_speed_mps=np.full(1, 25.0),
-        initial_mu=np.full((1, n_axles, per_axle), 0.35),
-        power_coefficient_per_s=np.full((1, n_axles, per_axle), 0.008),
-        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
-        initial_friction_temperature_K=np.full((1, n_axles, per_axle), 323.15),
-        initial_disc_temperature_K=np.full((1, n_axles, per_axle), 323.15),
-        ambient_temperature_K=np.full(1, 293.15),
-    )
+    conditions = _one_empty_train()
     law = ContactPressureFactor(0.1, 20e3, 2e3)
     adhesion = 0.05
     limit_N = adhesion * VEHICLE.mass_kg("empty") / n_axles * STANDARD_GRAVITY_MPS2
     # Clamp forces from well below to well above what the cap allows, one per axle.
     clamp = np.linspace(3e3, 45e3, n_axles)[:, None, None]
-    context = StageContext(
-        0.0,
-        np.array([20.0]),
-        np.array([400.0]),
-        conditions.mass_kg,
-        np.full((n_axles, per_axle, 1), 0.35),
-        clamp,
-        np.full((n_axles, per_axle, 1), 400.0),
-        np.zeros((n_axles, per_axle, 1)),
-    )
+    context = _stage_context(n_axles, per_axle, clamp)
     # The train's front at 400 m: every axle on the stretch from 300 m.
     caps = [
         make_effect("adhesion_limit", adhesion=adhesion),
@@ -274,7 +255,25 @@ def test_an_adhesion_cap_holds_whatever_friction_law_a_synthetic_truth_adds():
         np.testing.assert_allclose(axle_force_N[~capped], free_N[~capped], rtol=1e-12, err_msg=effect_id)
 
 
+def _one_empty_train():
+    """The conditions of one empty emu_8axle at 25 m/s with every disc at 50 degC."""
+    from brakegym.simulator import BatchConditions
+
+    disc_shape = (1, PLANT.n_axles, PLANT.discs_per_axle)
+    return BatchConditions(
+        mass_kg=np.full(1, VEHICLE.mass_kg("empty")),
+        initial_speed_mps=np.full(1, 25.0),
+        initial_mu=np.full(disc_shape, 0.35),
+        power_coefficient_per_s=np.full(disc_shape, 0.008),
+        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
+        initial_friction_temperature_K=np.full(disc_shape, 323.15),
+        initial_disc_temperature_K=np.full(disc_shape, 323.15),
+        ambient_temperature_K=np.full(1, 293.15),
+    )
+
+
 def _stage_context(n_axles: int, per_axle: int, clamp_N: np.ndarray, front_m: float = 400.0):
+    """A stage of one empty train whose front is at ``front_m``, each disc at mu 0.35 and 400 K."""
     from brakegym.simulator import StageContext
 
     return StageContext(
@@ -295,21 +294,11 @@ def test_a_brake_force_through_the_wheels_shares_the_adhesion_limit_with_the_pad
     capped axle the pads' force and its share together are the cap. Below the cap both are kept;
     a share above the cap is held at it and leaves the pads nothing."""
     from brakegym.effects.hooks import ConstantForce
-    from brakegym.simulator import BatchConditions
     from brakegym.simulator.hooks import friction_scale
 
     n_axles, per_axle = PLANT.n_axles, PLANT.discs_per_axle
     mass = VEHICLE.mass_kg("empty")
-    conditions = BatchConditions(
-        mass_kg=np.full(1, mass),
-        initial_speed_mps=np.full(1, 25.0),
-        initial_mu=np.full((1, n_axles, per_axle), 0.35),
-        power_coefficient_per_s=np.full((1, n_axles, per_axle), 0.008),
-        running_resistance_A_N=np.full(1, VEHICLE.running_resistance.A_N),
-        initial_friction_temperature_K=np.full((1, n_axles, per_axle), 323.15),
-        initial_disc_temperature_K=np.full((1, n_axles, per_axle), 323.15),
-        ambient_temperature_K=np.full(1, 293.15),
-    )
+    conditions = _one_empty_train()
     adhesion = 0.05
     limit_N = adhesion * mass / n_axles * STANDARD_GRAVITY_MPS2
     electrodynamic_N = electrodynamic_share_of_limit * limit_N * n_axles
