@@ -22,8 +22,8 @@ reports of each recording's measurement chain as the data show it.
   under ``measurement_chain`` in the diagnosis report.
 - **Line position.** Effects on part of the line (a gradient section, a stretch of low adhesion)
   are located in metres along the line. Where every recording carries ``line_position_m`` (its
-  first sample's place on the line), positions count from the set's line origin, the lowest of
-  them (:func:`on_set_line`), so that a stretch's bounds hold whatever the line's chainage; where
+  first sample's place on the line), positions count from the set's line origin, the lowest
+  line position they reach (:func:`on_set_line`), so that a stretch's bounds hold whatever the line's chainage; where
   none does, from each recording's own first sample (the recordings then start at one place). A
   set where some carry it and some do not is refused.
 - **Accelerometer bias.** A bias is a constant on every sample of a recording, which no sample

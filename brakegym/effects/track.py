@@ -29,7 +29,7 @@ class Gradient(Effect):
             40.0,
             0.0,
             ((-15.0, -2.0), (2.0, 15.0)),
-            description="rise over run x 1000 towards growing positions along the line",
+            description="rise over run x 1000 in the direction of travel",
         ),
     )
     RELEVANT_PERMIL = 1.0
