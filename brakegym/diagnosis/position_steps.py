@@ -110,7 +110,9 @@ def find_position_step(
     sums = np.zeros((len(samples), n_bins + 1))
     total_ss = 0.0
     for r, (position, decel) in enumerate(samples):
-        bins = np.minimum((position / bin_m).astype(int), n_bins - 1)
+        # Positions below the line origin by a little (a run back, whose simulated distance exceeds
+        # the measured one) count in the first bin.
+        bins = np.clip((position / bin_m).astype(int), 0, n_bins - 1)
         counts[r, 1:] = np.cumsum(np.bincount(bins, minlength=n_bins))
         sums[r, 1:] = np.cumsum(np.bincount(bins, weights=decel, minlength=n_bins))
         total_ss += float(np.sum(decel**2))
