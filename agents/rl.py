@@ -8,7 +8,7 @@ environment id, which rl_zoo3 reads as it is
 :class:`~brakegym.envs.sb3.SB3VecEnv`, with ``VecNormalize``, an evaluation callback on a separate
 batch of trains, a progress bar and an optional wall-clock budget. A trained agent is a folder:
 ``model.zip``, ``vecnormalize.pkl`` (the observation statistics) and ``training.json`` (what
-produced it).
+produced it), beside SB3's training log (``log/progress.csv``) and the evaluations (``eval/``).
 
 brakegym's own settings of a run live under the file's top-level ``brakegym`` key, per
 environment id, where rl_zoo3 does not read them (it would pass unknown keys of an entry to the
@@ -312,6 +312,7 @@ def train(
     environment's defaults for training only)."""
     _torch_single_thread()
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
     hyper = load_hyperparameters(algo, env_id, hyperparameters)
@@ -358,6 +359,9 @@ def train(
         norm_obs=normalize.get("norm_obs", True),
     )
     model = _model_class(algo)(hyper["policy"], venv, seed=seed, verbose=0, device="cpu", **algo_kwargs)
+    # The training log goes with the run: without a logger of its own, learn() opens a new folder
+    # in the system's temporary directory on every call and leaves it there.
+    model.set_logger(configure(str(out / "log"), ["csv"]))
     warm_start = None
     if hyper.get("warm_start"):
         if residual or hyper.get("jerk_shaping"):

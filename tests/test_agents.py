@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,9 +146,13 @@ def test_residual_agent_round_trip_and_zero_correction_is_the_pid(tmp_path):
         jerk_shaping={"above_mps3": 0.6, "weight_per_mps3": 1.0},
         env_config={"reward": {"jerk_per_mps3": 0.1}},
     )
+    logs_elsewhere = set(Path(tempfile.gettempdir()).glob("SB3-*"))
     folder = train(
         "ppo-residual", "StationStop-v0", tmp_path / "agent", seed=3, hyperparameters=hyper, progress_bar=False
     )
+    # The training log is kept with the run, not left in the system's temporary directory.
+    assert (folder / "log" / "progress.csv").is_file()
+    assert set(Path(tempfile.gettempdir()).glob("SB3-*")) == logs_elsewhere
     meta = json.loads((folder / "training.json").read_text())
     assert meta["env_config"] == {"reward": {"jerk_per_mps3": 0.1}}
     assert meta["residual"]["scale"] == 0.5 and meta["residual"]["pid_gains"]["proportional_gain"] == 0.6
