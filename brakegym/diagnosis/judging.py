@@ -269,6 +269,15 @@ class Judge:
         base_residual = self.baseline.residual
         for candidate in singles:
             candidate.passes = self.beats(candidate, 0.0, self.base_sse, base_residual)
+        by_id = {c.effect_ids: c for c in singles}
+        for candidate in singles:
+            # An effect that holds a fitted one as a special case must also beat it, as a pair
+            # beats its single (its report's held-out figures are then against that one).
+            nested = by_id.get((EFFECTS[candidate.effect_ids[0]].extends,))
+            if candidate.passes and nested is not None:
+                candidate.passes = self.beats(
+                    candidate, nested.delta_bic, nested.heldout.sse, nested.heldout.residual, nested.effect_ids
+                ) and float(np.sum(candidate.heldout.sse)) < float(np.sum(nested.heldout.sse))
         passing = [c for c in singles if c.passes]
         return min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
 

@@ -268,6 +268,10 @@ class Effect:
     #: What separates the effect from another (by id) that the data fit equally well; each pair is
     #: written on one of its two classes (see :func:`brakegym.effects.separating_measurement`).
     separating_measurements: ClassVar[Mapping[str, str]] = {}
+    #: the id of an effect this one holds as a special case (a profile of two sections holds one
+    #: section): where both are fitted, this one must beat that one by every rule, as a pair must
+    #: beat its single
+    extends: ClassVar[str | None] = None
 
     def __init__(self, **values: Value) -> None:
         names = [p.name for p in self.parameters]

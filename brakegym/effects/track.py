@@ -130,6 +130,7 @@ class GradientSections(Effect):
     section's fewer parameters win by the same rules."""
 
     id = "gradient_sections"
+    extends = GradientSection.id  # where the data hold one section, that one is named
     parameters = tuple(
         ParameterSpec(
             f"{which}_{spec.name}",
