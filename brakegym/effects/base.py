@@ -25,8 +25,7 @@ import numpy as np
 from .. import config as cfg
 from ..simulator import BatchConditions, ExtraForce, FrictionModifier, Plant, PressureSource, Simulator
 from ..units import STANDARD_GRAVITY_MPS2
-
-Value = float | np.ndarray
+from .hooks import AdhesionCap, AdhesionSectionCap, Value, WheelBrakeForceUnderAdhesion
 
 
 @dataclass(frozen=True)
@@ -240,8 +239,6 @@ class EffectedModel:
         friction modifiers."""
         if not self.wheel_brake_forces:
             return list(self.extra_forces)
-        from .hooks import AdhesionCap, AdhesionSectionCap, WheelBrakeForceUnderAdhesion  # hooks imports this module
-
         caps = tuple(m for m in self.friction_modifiers if isinstance(m, AdhesionCap | AdhesionSectionCap))
         if not caps:
             return [*self.extra_forces, *self.wheel_brake_forces]

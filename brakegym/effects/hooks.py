@@ -8,7 +8,9 @@ from typing import ClassVar
 import numpy as np
 
 from ..simulator import ExtraForce, FrictionModifier, Plant, StageContext
-from .base import Value
+
+# A parameter's value: one number, or one per train (or per disc).
+Value = float | np.ndarray
 
 
 @dataclass(frozen=True)
