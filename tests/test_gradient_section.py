@@ -225,3 +225,7 @@ def test_the_markdown_report_lists_what_pointed_the_search():
     assert placed[0].startswith("- Positions along the line (the step below, the start of a section or stretch) count ")
     assert "from 12000 m, the lowest line position the recordings reach" in placed[0]
     assert placed[1].startswith("- Step of the residual deceleration along position (while braking): 310 to 720 m al")
+    # A profile of two sections: the second step, found in what the first leaves, is shown too.
+    second = {**report["position_step"], "start_m": 760.0, "end_m": 980.0}
+    two = found_lines({**report, "second_position_step": second})
+    assert two[1].startswith("- Second step of the residual deceleration along position (while braking): 760 to 980 m")

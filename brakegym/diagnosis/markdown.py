@@ -87,23 +87,25 @@ def _table(rows: list[list[str]]) -> str:
 
 def found_lines(report: dict) -> list[str]:
     """What the data pointed the search at, as Markdown bullets: the step of the residual along
-    position, each friction level's shared shift, the fallback's signatures."""
+    position (and the second, found in what the first leaves), each friction level's shared
+    shift, the fallback's signatures."""
     lines = []
-    step = report.get("position_step")
     origin = report.get("line_origin_m")
     if origin is not None:
         lines.append(
             f"- Positions along the line (the step below, the start of a section or stretch) count from "
             f"{origin:g} m, the lowest line position the recordings reach."
         )
-    if step is not None:
-        counted = "from the recordings' first samples" if origin is None else "along the line"
-        lines.append(
-            f"- Step of the residual deceleration along position (while braking): {step['start_m']:g} to "
-            f"{step['end_m']:g} m {counted}, {step['decel_step_mps2']:g} m/s^2 "
-            f"(a gradient of {step['gradient_permil']:g} permil), {step['explained_share']:.1%} of the "
-            f"residual's variance, {step['recordings']} recordings on it."
-        )
+    counted = "from the recordings' first samples" if origin is None else "along the line"
+    for key, what in (("position_step", "Step"), ("second_position_step", "Second step")):
+        step = report.get(key)
+        if step is not None:
+            lines.append(
+                f"- {what} of the residual deceleration along position (while braking): {step['start_m']:g} to "
+                f"{step['end_m']:g} m {counted}, {step['decel_step_mps2']:g} m/s^2 "
+                f"(a gradient of {step['gradient_permil']:g} permil), {step['explained_share']:.1%} of the "
+                f"residual's variance, {step['recordings']} recordings on it."
+            )
     for candidate in report["candidates"]:
         shift = candidate.get("friction_level_shift")
         if shift is not None:
