@@ -1,8 +1,10 @@
 """The hyperparameter files in configs/agents/ are readable by rl_zoo3 as they are: rl_zoo3 trains
 from each (a short run), with brakegym's own keys kept where rl_zoo3 does not read them."""
 
+import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -54,9 +56,12 @@ def test_rl_zoo3_trains_from_the_file(name, tmp_path):
         "--seed",
         "0",
     ]
-    result = subprocess.run(
-        command, capture_output=True, text=True, timeout=600, env={"OMP_NUM_THREADS": "1", **__import__("os").environ}
-    )
+    # Without a log folder of its own, SB3's logger makes a new SB3-* folder in the system temp
+    # directory on every run; SB3_LOGDIR keeps it with the test's files.
+    logs_elsewhere = set(Path(tempfile.gettempdir()).glob("SB3-*"))
+    environment = {"OMP_NUM_THREADS": "1", **os.environ, "SB3_LOGDIR": str(tmp_path / "sb3")}
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600, env=environment)
     assert result.returncode == 0, result.stderr[-3000:]
     saved = list((tmp_path / "logs" / ZOO_FILES[name]).glob("brakegym-*_1/*.zip"))
     assert saved, result.stdout[-2000:]
+    assert set(Path(tempfile.gettempdir()).glob("SB3-*")) == logs_elsewhere
