@@ -224,3 +224,58 @@ def test_stops_run_both_ways_locate_the_stretch_at_one_place_on_the_line(spread_
     end = PATCH["patch_start_m"] + PATCH["patch_length_m"]
     assert step.end_m + origin == pytest.approx(end, abs=tolerance)
     assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
+
+
+@pytest.fixture(scope="module")
+def both_ways_sets(tmp_path_factory) -> tuple[Path, Path]:
+    """The same seed run both ways along the line, with the stretch of PATCH and without it."""
+    root = tmp_path_factory.mktemp("both_ways")
+    for name, effects in (("patch", [EffectRequest("adhesion_section", PATCH)]), ("free", [])):
+        synthesize(root / name, 8, seed=4, effects=effects, line_spread_m=400.0, both_directions=True)
+    return root / "patch", root / "free"
+
+
+def test_synth_runs_stops_both_ways_and_each_meets_the_stretch_where_it_passes_it(both_ways_sets):
+    """Runs both ways, a run back beginning 1000 m further along. Each run's speeds are those of
+    the same seed without the stretch until the train is on the stretch (500-800 m on the line,
+    from either end; a train length and a sample's travel of margin): a run that never comes that
+    near it is unchanged throughout, and runs both ways that brake on it are changed there."""
+    with_patch, without = read_dataset(both_ways_sets[0]).recordings, read_dataset(both_ways_sets[1]).recordings
+    directions = [r.metadata.line_direction for r in with_patch]
+    assert set(directions) == {"increasing", "decreasing"}
+    for recording in with_patch:
+        start = recording.metadata.line_position_m
+        assert (1000.0 <= start <= 1400.0) if recording.metadata.line_direction == "decreasing" else 0 <= start <= 400
+    margin = TRAIN_LENGTH_M + 10.0  # a sample's travel at the top speed is under 5 m
+    low, high = PATCH["patch_start_m"] - margin, PATCH["patch_start_m"] + PATCH["patch_length_m"] + margin
+    changed = {"increasing": 0, "decreasing": 0}
+    for patched, free in zip(with_patch, without, strict=True):
+        on_line = patched.metadata.on_line_m(patched.data["position_m"].to_numpy())
+        speeds = patched.data["speed_mps"].to_numpy(), free.data["speed_mps"].to_numpy()
+        common = min(len(speeds[0]), len(speeds[1]))
+        differs = np.flatnonzero(speeds[0][:common] != speeds[1][:common])
+        if on_line.max() < low or on_line.min() > high:
+            assert differs.size == 0 and len(speeds[0]) == len(speeds[1]), patched.stem
+        elif differs.size:
+            assert low <= on_line[differs[0]] <= high, (patched.stem, on_line[differs[0]])
+            changed[patched.metadata.line_direction] += 1
+    assert min(changed.values()) >= 1, changed
+
+
+def test_the_stretch_is_located_at_its_place_from_runs_both_ways(both_ways_sets):
+    """On the set run both ways the step of the residual lies at the stretch on the line (counted
+    from the set's origin), to within half a train length and two bins, as on the relabelled set."""
+    diagnoser = Diagnoser(read_dataset(both_ways_sets[0]).recordings)
+    traces = [residual_trace(replayed) for replayed in diagnoser.unmodified_fit().replays]
+    rules = DiagnosisRules()
+    step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
+    origin = diagnoser.line_origin_m
+    tolerance = TRAIN_LENGTH_M / 2 + 2 * rules.position_step_bin_m
+    assert step.start_m + origin == pytest.approx(PATCH["patch_start_m"], abs=tolerance)
+    assert step.end_m + origin == pytest.approx(PATCH["patch_start_m"] + PATCH["patch_length_m"], abs=tolerance)
+    assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
+
+
+def test_runs_both_ways_need_a_line_spread(tmp_path):
+    with pytest.raises(ValueError, match="runs both ways along the line need a line spread"):
+        synthesize(tmp_path / "set", 2, seed=1, both_directions=True)

@@ -85,6 +85,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
         gradient_profile=args.gradient_profile,
         declare_gradient_profile=not args.conceal_gradient_profile,
         line_spread_m=args.line_spread_m,
+        both_directions=args.both_directions,
     )
     print(f"wrote {len(result.recordings)} recordings to {result.folder} and the answer key to {result.key_path}")
     return 0
@@ -162,6 +163,15 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
             "each application begins at its own place on the line, drawn in 0..M metres and written into its "
             "metadata (line_position_m); effects on part of the line then lie in metres along it (default 0: "
             "every application begins at the same place)"
+        ),
+    )
+    p.add_argument(
+        "--both-directions",
+        action="store_true",
+        help=(
+            "with --line-spread-m: each application runs towards growing or falling line positions, drawn evenly "
+            "and written into its metadata (line_direction); a run back begins further along the line, so that runs "
+            "both ways meet about the same part of it"
         ),
     )
     p.add_argument("--key", help="answer key path (default OUT_DIR/../<name>_key.json; never inside OUT_DIR)")

@@ -86,6 +86,10 @@ SPEED_RANGE_KMH = (60.0, 160.0)
 # The child of the set's seed that draws where the applications begin on the line (after the six
 # of _draw_set: spawning more does not change those).
 LINE_STREAM = 6
+# Where a run back begins, beyond the place drawn for it: runs of the synth's middle speeds cover
+# 600-900 m from their first sample to standstill (coasting and braking), so runs both ways then
+# meet about the same part of the line.
+RUN_BACK_OFFSET_M = 1000.0
 COASTING_RANGE_S = (4.0, 10.0)
 STANDSTILL_RANGE_S = (2.0, 5.0)
 AMBIENT_RANGE_C = (0.0, 30.0)
@@ -208,6 +212,7 @@ class Application:
     initial_disc_C: float
     axle_pressure_bar: np.ndarray
     line_position_m: float | None = None  # where along the line its first sample is (None: not said)
+    line_direction: str | None = None  # "decreasing" for a run towards falling line positions (None: not said)
 
 
 def _round(values: np.ndarray, resolution: float) -> np.ndarray:
@@ -246,12 +251,25 @@ def draw_applications(
     return applications
 
 
-def _placed_on_the_line(applications: list[Application], seed: int, spread_m: float) -> list[Application]:
+def _placed_on_the_line(
+    applications: list[Application], seed: int, spread_m: float, both_directions: bool = False
+) -> list[Application]:
     """The applications, each beginning at a place on the line drawn evenly in 0..``spread_m``
-    (to 0.1 m), from a stream of its own: the set's other draws stay what they are without it."""
+    (to 0.1 m), from a stream of its own: the set's other draws stay what they are without it.
+    ``both_directions``: each run goes towards growing or falling line positions, drawn evenly
+    after the places (which stay what they are without it). A run back begins
+    ``RUN_BACK_OFFSET_M`` further along, so that runs both ways cover the same part of the line."""
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(LINE_STREAM + 1)[LINE_STREAM])
     positions = np.round(rng.uniform(0.0, spread_m, size=len(applications)), 1)
-    return [dataclasses.replace(app, line_position_m=float(x)) for app, x in zip(applications, positions, strict=True)]
+    back = rng.integers(2, size=len(applications)).astype(bool) if both_directions else np.zeros(len(positions), bool)
+    return [
+        dataclasses.replace(
+            app,
+            line_position_m=float(x + RUN_BACK_OFFSET_M) if is_back else float(x),
+            line_direction=("decreasing" if is_back else "increasing") if both_directions else None,
+        )
+        for app, x, is_back in zip(applications, positions, back, strict=True)
+    ]
 
 
 def _draw_base_offset(
@@ -310,6 +328,7 @@ def synthesize(
     gradient_profile: GradientProfile | None = None,
     declare_gradient_profile: bool = True,
     line_spread_m: float = 0.0,
+    both_directions: bool = False,
 ) -> SynthResult:
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
@@ -327,7 +346,9 @@ def synthesize(
     begins at its own place on the line, drawn evenly in 0..``line_spread_m`` m and written into
     its metadata (``line_position_m``), as recordings taken along a line are; effects on part of
     the line then lie in metres along it (0: every application begins at 0, and the metadata
-    say nothing)."""
+    say nothing). ``both_directions`` (with ``line_spread_m``): each application runs towards
+    growing or falling line positions, drawn evenly and written into its metadata
+    (``line_direction``); a run back begins ``RUN_BACK_OFFSET_M`` further along the line."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
@@ -341,8 +362,13 @@ def synthesize(
     drawn = _draw_set(
         n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
     )
+    if both_directions and not line_spread_m > 0:
+        raise ValueError(
+            "runs both ways along the line need a line spread of more than 0 m "
+            "(line_spread_m, --line-spread-m): give one"
+        )
     if line_spread_m > 0:
-        drawn.applications = _placed_on_the_line(drawn.applications, seed, line_spread_m)
+        drawn.applications = _placed_on_the_line(drawn.applications, seed, line_spread_m, both_directions)
     drawn.gradient_profile, drawn.gradient_profile_declared = gradient_profile, declare_gradient_profile
     model, grid = _simulate_truth(drawn, drawn.chosen)
     recordings, truth_rows = _write_recordings(drawn, model, grid, out_dir, noise_scale)
@@ -554,6 +580,7 @@ def _truth_row(drawn: _DrawnSet, b: int, model: EffectedModel, grid: GridTraject
         "ambient_C": app.ambient_C,
         "axle_pressure_command_bar": [float(p) for p in app.axle_pressure_bar],
         **({} if app.line_position_m is None else {"line_position_m": app.line_position_m}),
+        **({} if app.line_direction is None else {"line_direction": app.line_direction}),
         **({} if drawn.model_form is None else {"model_form": truth_row_entry(drawn.model_form, b)}),
     }
 
@@ -623,6 +650,7 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
         form.friction_modifiers() if form is not None else (),
         form.wheel_brake_forces(command_time) if form is not None else (),
         line_position_at_start_m=np.array([a.line_position_m or 0.0 for a in applications]),
+        line_direction_sign=np.array([-1.0 if a.line_direction == "decreasing" else 1.0 for a in applications]),
     )
     add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
@@ -778,6 +806,7 @@ def _metadata(app: Application, decel_source: str, gradient_profile: GradientPro
         pad_set=app.pad_set,
         gradient_profile=gradient_profile,
         line_position_m=app.line_position_m,
+        line_direction=app.line_direction,
     )
 
 
