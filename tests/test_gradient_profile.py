@@ -11,12 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from brakegym import config as cfg
 from brakegym.cli import main
 from brakegym.diagnosis import diagnose
 from brakegym.effects.hooks import GradientProfileForce
-from brakegym.recordings import GradientProfile, RecordingError, read_dataset, read_metadata
+from brakegym.recordings import GradientProfile, LineGradientProfile, RecordingError, read_dataset, read_metadata
 from brakegym.recordings.replay import compare, replay_batch
 from brakegym.recordings.synth import synthesize
 from brakegym.simulator import StageContext
@@ -155,3 +157,101 @@ def test_a_declared_profile_is_not_named_as_an_effect(tmp_path):
         folder = synthesize(tmp_path / "set", 5, seed=61, gradient_profile=PROFILE).folder
     report = diagnose(folder, top_singles=2, pairs_from=0).report
     assert report["selected"] == [], report["summary"]
+
+
+# --- a known profile in positions along the line ------------------------------------------------
+
+LINE = LineGradientProfile(start_m=[0.0, 200.0, 500.0, 700.0], gradient_permil=[0.0, 8.0, 0.0, -9.0])
+
+
+def test_a_run_over_a_line_profile_meets_its_sections_from_where_it_begins():
+    """A run from 100 m towards growing positions meets the sections 100 m early; a run back from
+    900 m meets them in reverse, each gradient with the other sign (a rise is a fall run back)."""
+    ahead = LINE.along_run(100.0, +1.0)
+    assert ahead.start_m == [0.0, 100.0, 400.0, 600.0] and ahead.gradient_permil == [0.0, 8.0, 0.0, -9.0]
+    back = LINE.along_run(900.0, -1.0)
+    assert back.start_m == [0.0, 200.0, 400.0, 700.0] and back.gradient_permil == [9.0, 0.0, -8.0, 0.0]
+    # Beginning on a section's start: run ahead it is on that section, run back on the one before.
+    assert LINE.along_run(500.0, +1.0).gradient_permil[0] == 0.0
+    assert LINE.along_run(500.0, -1.0).gradient_permil[0] == -8.0
+
+
+def _line_grade(profile: LineGradientProfile, x: float) -> float:
+    section = max(int(np.searchsorted(profile.start_m, x, side="right")) - 1, 0)
+    return profile.gradient_permil[section]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    starts=st.lists(st.integers(-2000, 3000), min_size=1, max_size=6, unique=True),
+    gradients=st.lists(st.integers(-40, 40), min_size=6, max_size=6),
+    begin=st.floats(-2500.0, 3500.0),
+    back=st.booleans(),
+    travelled=st.floats(0.0, 3000.0),
+)
+def test_the_run_profile_is_the_line_profile_where_the_run_is(starts, gradients, begin, back, travelled):
+    """Invariant: the gradient under the run after ``travelled`` metres is the line's gradient where
+    the run then is, times the direction (the first section also holds before its start)."""
+    line = LineGradientProfile(start_m=[float(x) for x in sorted(starts)], gradient_permil=gradients[: len(starts)])
+    sign = -1.0 if back else 1.0
+    x = begin + sign * travelled
+    assume(min(abs(x - a) for a in line.start_m) > 1e-6 and min(abs(begin - a) for a in line.start_m) > 1e-6)
+    run = line.along_run(begin, sign)
+    assert run.start_m[0] == 0.0
+    section = int(np.searchsorted(run.start_m, travelled, side="right")) - 1
+    assert run.gradient_permil[section] == sign * _line_grade(line, x)
+
+
+def test_a_line_profile_needs_a_line_position_and_stands_alone(tmp_path):
+    needs_position = _metadata(line_gradient_profile=LINE.model_dump())
+    path = tmp_path / "rec.json"
+    path.write_text(json.dumps(needs_position))
+    with pytest.raises(RecordingError, match="'line_gradient_profile' needs 'line_position_m'"):
+        read_metadata(path)
+    path.write_text(json.dumps({**needs_position, "line_position_m": 50.0, "gradient_profile": PROFILE.model_dump()}))
+    with pytest.raises(RecordingError, match="give the line's known gradient once"):
+        read_metadata(path)
+    path.write_text(json.dumps({**needs_position, "line_position_m": 150.0, "line_direction": "decreasing"}))
+    assert read_metadata(path).run_gradient_profile == LINE.along_run(150.0, -1.0)
+
+
+def test_synth_runs_a_spread_set_over_the_line_profile_and_the_replay_reproduces_it(tmp_path):
+    """With a line spread the profile lies along the line: each recording carries it as
+    ``line_gradient_profile`` and runs over its own part of it, both ways; the replay reproduces
+    the noise-free recordings as well as with a profile from the first sample (and as exactly as
+    the equivalent ``gradient_profile`` written into each recording)."""
+    folder = tmp_path / "set"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        synthesize(
+            folder,
+            6,
+            seed=2,
+            noise_scale=0.0,
+            scatter_setup="ds",
+            gradient_profile=GradientProfile(**LINE.model_dump()),
+            line_spread_m=600.0,
+            both_directions=True,
+        )
+    recordings = read_dataset(folder).recordings
+    assert {r.metadata.line_direction for r in recordings} == {"increasing", "decreasing"}
+    assert all(r.metadata.line_gradient_profile == LINE and r.metadata.gradient_profile is None for r in recordings)
+    for c in (compare(r) for r in replay_batch(recordings)):
+        assert c.rms["speed_mps"] < 0.01
+        assert c.distance_rms["decel_mps2"] < 0.003
+    own = [
+        dataclasses.replace(
+            r,
+            metadata=r.metadata.model_copy(
+                update={"line_gradient_profile": None, "gradient_profile": r.metadata.run_gradient_profile}
+            ),
+        )
+        for r in recordings
+    ]
+    for placed, first_sample in zip(replay_batch(recordings), replay_batch(own), strict=True):
+        assert np.array_equal(placed.channels["speed_mps"], first_sample.channels["speed_mps"])
+    level = [
+        dataclasses.replace(r, metadata=r.metadata.model_copy(update={"line_gradient_profile": None}))
+        for r in recordings
+    ]
+    assert min(compare(r).rms["speed_mps"] for r in replay_batch(level)) > 0.1

@@ -212,17 +212,23 @@ def test_stops_run_both_ways_locate_the_stretch_at_one_place_on_the_line(spread_
         )
         for index, r in enumerate(recordings)
     ]
-    diagnoser = Diagnoser(both_ways)
     reached = [r.metadata.on_line_m(np.array([0.0, 300.0])) for r in both_ways[1::2]]
     assert all(x[1] < x[0] for x in reached)
+    _assert_step_at_the_stretch(both_ways)
+
+
+def _assert_step_at_the_stretch(recordings) -> None:
+    """The step of the unmodified model's residual along position lies at PATCH's stretch on the
+    line (counted from the set's origin), to within half a train length and two bins: run back,
+    a stop's step edges lie half a train length before the stretch's ends instead of beyond them."""
+    diagnoser = Diagnoser(recordings)
     traces = [residual_trace(replayed) for replayed in diagnoser.unmodified_fit().replays]
     rules = DiagnosisRules()
     step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
     origin = diagnoser.line_origin_m
     tolerance = TRAIN_LENGTH_M / 2 + 2 * rules.position_step_bin_m
     assert step.start_m + origin == pytest.approx(PATCH["patch_start_m"], abs=tolerance)
-    end = PATCH["patch_start_m"] + PATCH["patch_length_m"]
-    assert step.end_m + origin == pytest.approx(end, abs=tolerance)
+    assert step.end_m + origin == pytest.approx(PATCH["patch_start_m"] + PATCH["patch_length_m"], abs=tolerance)
     assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
 
 
@@ -265,15 +271,7 @@ def test_synth_runs_stops_both_ways_and_each_meets_the_stretch_where_it_passes_i
 def test_the_stretch_is_located_at_its_place_from_runs_both_ways(both_ways_sets):
     """On the set run both ways the step of the residual lies at the stretch on the line (counted
     from the set's origin), to within half a train length and two bins, as on the relabelled set."""
-    diagnoser = Diagnoser(read_dataset(both_ways_sets[0]).recordings)
-    traces = [residual_trace(replayed) for replayed in diagnoser.unmodified_fit().replays]
-    rules = DiagnosisRules()
-    step = find_position_step(traces, rules.position_step_bin_m, TRAIN_LENGTH_M)
-    origin = diagnoser.line_origin_m
-    tolerance = TRAIN_LENGTH_M / 2 + 2 * rules.position_step_bin_m
-    assert step.start_m + origin == pytest.approx(PATCH["patch_start_m"], abs=tolerance)
-    assert step.end_m + origin == pytest.approx(PATCH["patch_start_m"] + PATCH["patch_length_m"], abs=tolerance)
-    assert step.decel_step_mps2 < 0 and step.explained_share > rules.position_step_min_share
+    _assert_step_at_the_stretch(read_dataset(both_ways_sets[0]).recordings)
 
 
 def test_runs_both_ways_need_a_line_spread(tmp_path):

@@ -145,8 +145,9 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
         metavar="START_M:PERMIL,...",
         help=(
             "run every application on a line of this gradient profile, sections from metres travelled since the "
-            "recording's first sample, e.g. 0:0,400:-6 (level, then 6 permil downhill from 400 m); written into "
-            "each recording's metadata as the line's known gradient"
+            "recording's first sample, e.g. 0:0,400:-6 (level, then 6 permil downhill from 400 m), or with "
+            "--line-spread-m in positions along the line; written into each recording's metadata as the line's "
+            "known gradient (gradient_profile, or line_gradient_profile)"
         ),
     )
     p.add_argument(

@@ -10,7 +10,7 @@ sets (``brakegym synth``). The diagnosis of recordings is :mod:`brakegym.diagnos
 """
 
 from .format import Dataset, Recording, read_dataset, read_recording, write_recording
-from .metadata import GradientProfile, RecordingMetadata, read_metadata
+from .metadata import GradientProfile, LineGradientProfile, RecordingMetadata, read_metadata
 from .problems import DatasetError, RecordingError, RecordingProblem
 
 __all__ = [
@@ -19,6 +19,7 @@ __all__ = [
     "Recording",
     "RecordingError",
     "GradientProfile",
+    "LineGradientProfile",
     "RecordingMetadata",
     "RecordingProblem",
     "read_dataset",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Self
 
 import numpy as np
 from pydantic import (
@@ -67,12 +67,10 @@ def _vehicle_validated_before(info: ValidationInfo) -> cfg.Vehicle | None:
 MAX_GRADIENT_PERMIL = 40.0
 
 
-class GradientProfile(BaseModel):
-    """The line's gradient along a recording, where it is known (docs/recording-format.md): section
-    i runs from ``start_m[i]`` metres travelled from the recording's first sample to the next start
-    (the last to the end of the run), at ``gradient_permil[i]`` (rise over run x 1000 in the
-    direction of travel, + uphill). The replay puts it into the model, so the diagnosis looks only
-    for what is not known."""
+class SectionProfile(BaseModel):
+    """Sections of gradient along a coordinate, section i from ``start_m[i]`` to the next start
+    (the last to the end) at ``gradient_permil[i]``; the fields and checks that
+    :class:`GradientProfile` and :class:`LineGradientProfile` share."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -81,9 +79,7 @@ class GradientProfile(BaseModel):
 
     @field_validator("start_m")
     @classmethod
-    def _starts_rise_from_zero(cls, starts: list[float]) -> list[float]:
-        if starts[0] != 0.0:
-            raise ValueError("the first section must start at 0 m (the recording's first sample)")
+    def _starts_rise(cls, starts: list[float]) -> list[float]:
         if any(not b > a for a, b in zip(starts, starts[1:])) or not all(map(_finite, starts)):
             raise ValueError("section starts must be finite and rise")
         return starts
@@ -97,12 +93,58 @@ class GradientProfile(BaseModel):
         return gradients
 
     @model_validator(mode="after")
-    def _one_gradient_per_section(self) -> GradientProfile:
+    def _one_gradient_per_section(self) -> Self:
         if len(self.start_m) != len(self.gradient_permil):
             raise ValueError(
                 f"{len(self.start_m)} section starts for {len(self.gradient_permil)} gradients: need one each"
             )
         return self
+
+
+class GradientProfile(SectionProfile):
+    """The line's gradient along a recording, where it is known (docs/recording-format.md): section
+    i runs from ``start_m[i]`` metres travelled from the recording's first sample to the next start
+    (the last to the end of the run), at ``gradient_permil[i]`` (rise over run x 1000 in the
+    direction of travel, + uphill). The replay puts it into the model, so the diagnosis looks only
+    for what is not known."""
+
+    @field_validator("start_m")
+    @classmethod
+    def _starts_from_zero(cls, starts: list[float]) -> list[float]:
+        if starts[0] != 0.0:
+            raise ValueError("the first section must start at 0 m (the recording's first sample)")
+        return starts
+
+
+class LineGradientProfile(SectionProfile):
+    """The line's known gradient in positions along the line (docs/recording-format.md), for
+    recordings placed on it (``line_position_m``): section i runs from line position
+    ``start_m[i]`` to the next start (the last to the end of the line), at ``gradient_permil[i]``
+    (rise over run x 1000 towards growing positions). The first section also holds before its
+    start. Each recording runs over its own part of it (:meth:`along_run`)."""
+
+    def along_run(self, line_position_m: float, direction_sign: float) -> GradientProfile:
+        """The profile under a run that begins at ``line_position_m`` and runs towards growing
+        (``direction_sign`` +1) or falling (-1) positions: sections from its first sample, each
+        gradient in its direction of travel (a run back climbs a rise as a fall)."""
+        starts = np.asarray(self.start_m, dtype=float)
+        gradients = np.asarray(self.gradient_permil, dtype=float)
+        if direction_sign > 0:
+            # The section under the first sample, then each one whose start lies ahead.
+            first = max(int(np.searchsorted(starts, line_position_m, side="right")) - 1, 0)
+            ahead = np.arange(first + 1, len(starts))
+            run_starts = [0.0, *(starts[ahead] - line_position_m)]
+            run_gradients = [gradients[first], *gradients[ahead]]
+        else:
+            # The section just behind the first sample, then each one whose start the run passes
+            # going back (entering the section before it).
+            first = max(int(np.searchsorted(starts, line_position_m, side="left")) - 1, 0)
+            passed = np.arange(first, 0, -1)
+            run_starts = [0.0, *(line_position_m - starts[passed])]
+            run_gradients = [-gradients[first], *(-gradients[passed - 1])]
+        return GradientProfile(
+            start_m=[float(x) for x in run_starts], gradient_permil=[float(g) + 0.0 for g in run_gradients]
+        )
 
 
 def _finite(value: float) -> bool:
@@ -130,6 +172,9 @@ class RecordingMetadata(BaseModel):
     decel_source: Literal["accelerometer", "speed"] | None = None
     pad_set: str | None = None
     gradient_profile: GradientProfile | None = None  # the line's known gradient along the run
+    #: the line's known gradient in positions along the line; only with ``line_position_m``, and
+    #: not with ``gradient_profile``
+    line_gradient_profile: LineGradientProfile | None = None
     #: where along the line the first sample was taken, metres, counted in the direction of travel
     #: (docs/recording-format.md): it places the recordings of a set on one line
     line_position_m: float | None = Field(default=None, allow_inf_nan=False)
@@ -187,6 +232,26 @@ class RecordingMetadata(BaseModel):
                 "recording begins)"
             )
         return self
+
+    @model_validator(mode="after")
+    def _line_profile_on_the_line(self) -> RecordingMetadata:
+        if self.line_gradient_profile is not None and self.line_position_m is None:
+            raise ValueError("'line_gradient_profile' needs 'line_position_m' (where on the line the recording begins)")
+        if self.line_gradient_profile is not None and self.gradient_profile is not None:
+            raise ValueError(
+                "give the line's known gradient once: 'gradient_profile' (from the recording's first sample) or "
+                "'line_gradient_profile' (in positions along the line), not both"
+            )
+        return self
+
+    @property
+    def run_gradient_profile(self) -> GradientProfile | None:
+        """The run's known gradient profile counted from its first sample, which is
+        ``gradient_profile`` or the run's part of ``line_gradient_profile`` (None where neither is
+        given)."""
+        if self.line_gradient_profile is None:
+            return self.gradient_profile
+        return self.line_gradient_profile.along_run(self.line_position_m, self.line_direction_sign)
 
     @property
     def line_direction_sign(self) -> float:

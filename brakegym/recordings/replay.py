@@ -221,8 +221,8 @@ def replay_batch(
     recording's own), override the initial state. ``friction_draw`` (per disc, shape
     (recordings, axles, discs per axle)) and ``running_resistance_A_N`` (one per recording) replace
     the material's nominal mu_0 and a and the vehicle's nominal A: a drawn scatter, as a
-    campaign draws it. A recording's known gradient profile (its metadata's ``gradient_profile``)
-    is part of the model, not an effect.
+    campaign draws it. A recording's known gradient profile (its metadata's ``gradient_profile``,
+    or its run's part of ``line_gradient_profile``) is part of the model, not an effect.
     """
     if not recordings:
         raise ValueError("replay_batch needs at least one recording")
@@ -278,7 +278,7 @@ def replay_batch(
         line_position_at_start_m=np.array([r.metadata.line_position_m or 0.0 for r in recordings]),
         line_direction_sign=np.array([r.metadata.line_direction_sign for r in recordings]),
     )
-    add_gradient_profiles(model, [r.metadata.gradient_profile for r in recordings])
+    add_gradient_profiles(model, [r.metadata.run_gradient_profile for r in recordings])
 
     # The true initial speed: the first speed sample seen through the (possibly scaled) sensor.
     overrides_v = _overrides(initial_speed_mps, n, "initial_speed_mps")

@@ -71,7 +71,7 @@ from .columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED, TIME, pressure_co
 from .format import Recording, write_recording
 from .logger import log_run
 from .measurement import GridTrajectory, MeasurementModel
-from .metadata import GradientProfile, RecordingMetadata
+from .metadata import GradientProfile, LineGradientProfile, RecordingMetadata
 from .model_form import DrawnModelForm, ModelForm, draw_model_form, key_entry, truth_row_entry
 from .replay import add_gradient_profiles, simulate_grid
 
@@ -340,7 +340,8 @@ def synthesize(
     ``noise_scale``; offsets, quantisation and dropouts as configured); ``model_form`` makes the
     truth differ from the fitted model (:mod:`.model_form`: its step and integrator, unmodelled
     forces, effects outside the library, recorded in the key); ``gradient_profile`` runs every
-    application on a line of that gradient profile (from each recording's first sample), written
+    application on a line of that gradient profile (from each recording's first sample; with
+    ``line_spread_m``, in positions along the line, each run over its own part of it), written
     into each recording's metadata where ``declare_gradient_profile`` (a known line), else only
     into the key (a line the diagnosis has to find). ``line_spread_m`` > 0: each application
     begins at its own place on the line, drawn evenly in 0..``line_spread_m`` m and written into
@@ -354,11 +355,6 @@ def synthesize(
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
     if not (math.isfinite(line_spread_m) and line_spread_m >= 0):
         raise ValueError(f"line spread {line_spread_m} m: must be a non-negative finite number")
-    if line_spread_m > 0 and gradient_profile is not None:
-        raise ValueError(
-            "a gradient profile (from each recording's first sample) and a line spread (recordings beginning at "
-            "different places) cannot be combined: give one of them"
-        )
     drawn = _draw_set(
         n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
     )
@@ -652,7 +648,7 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
         line_position_at_start_m=np.array([a.line_position_m or 0.0 for a in applications]),
         line_direction_sign=np.array([-1.0 if a.line_direction == "decreasing" else 1.0 for a in applications]),
     )
-    add_gradient_profiles(model, [drawn.gradient_profile] * len(drawn.applications))
+    add_gradient_profiles(model, [_run_profile(drawn.gradient_profile, a) for a in applications])
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
         # The effect sets the set's running resistance; each application still scatters around it.
         model.conditions = dataclasses.replace(
@@ -792,9 +788,20 @@ def _measure(
     return Recording(stem=app.stem, metadata=_metadata(app, decel_source, gradient_profile), data=pd.DataFrame(data))
 
 
+def _run_profile(profile: GradientProfile | None, app: Application) -> GradientProfile | None:
+    """The gradient profile under ``app``'s run: the set's profile from its first sample, or, for
+    an application placed on the line, its run's part of the profile in line positions."""
+    if profile is None or app.line_position_m is None:
+        return profile
+    sign = -1.0 if app.line_direction == "decreasing" else 1.0
+    return LineGradientProfile(**profile.model_dump()).along_run(app.line_position_m, sign)
+
+
 def _metadata(app: Application, decel_source: str, gradient_profile: GradientProfile | None) -> RecordingMetadata:
     """What a synthetic recording says was measured (no ``initial_disc_C``: the first disc
-    temperature sample, if any, gives it), and the line's gradient profile where it is known."""
+    temperature sample, if any, gives it), and the line's gradient profile where it is known: in
+    line positions for an application placed on the line."""
+    on_line = app.line_position_m is not None and gradient_profile is not None
     return RecordingMetadata(
         vehicle=VEHICLE,
         load=app.load,
@@ -804,7 +811,8 @@ def _metadata(app: Application, decel_source: str, gradient_profile: GradientPro
         ambient_C=app.ambient_C,
         decel_source=decel_source,
         pad_set=app.pad_set,
-        gradient_profile=gradient_profile,
+        gradient_profile=None if on_line else gradient_profile,
+        line_gradient_profile=LineGradientProfile(**gradient_profile.model_dump()) if on_line else None,
         line_position_m=app.line_position_m,
         line_direction=app.line_direction,
     )
