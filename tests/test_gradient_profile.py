@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from brakegym import config as cfg
 from brakegym.cli import main
 from brakegym.diagnosis import diagnose
+from brakegym.diagnosis.inputs import on_set_line
 from brakegym.effects.hooks import GradientProfileForce
 from brakegym.recordings import GradientProfile, LineGradientProfile, RecordingError, read_dataset, read_metadata
 from brakegym.recordings.replay import compare, replay_batch
@@ -255,3 +256,12 @@ def test_synth_runs_a_spread_set_over_the_line_profile_and_the_replay_reproduces
         for r in recordings
     ]
     assert min(compare(r).rms["speed_mps"] for r in replay_batch(level)) > 0.1
+    # The diagnosis counts line positions from the set's origin: the profile's starts move with
+    # them, so each run still meets the same sections.
+    placed, origin = on_set_line(recordings)
+    assert origin != 0.0  # the positions move
+    for rebased, original in zip(placed, recordings, strict=True):
+        on_run, expected = rebased.metadata.run_gradient_profile, original.metadata.run_gradient_profile
+        assert on_run.start_m == pytest.approx(expected.start_m, abs=1e-9)
+        assert on_run.gradient_permil == expected.gradient_permil
+    assert placed[0].metadata.line_gradient_profile.start_m[0] == -origin

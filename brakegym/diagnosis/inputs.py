@@ -44,6 +44,7 @@ import numpy as np
 
 from ..recordings.columns import DECEL, DISC_TEMPERATURE, POSITION, SPEED
 from ..recordings.format import Recording
+from ..recordings.metadata import RecordingMetadata
 from ..recordings.replay import measured_distance_m, standstill_index
 from .locate import brake_onset_s
 from .noise import ChannelNoise, channel_samples, quantisation_step, zero_reading
@@ -269,12 +270,22 @@ def on_set_line(recordings: Sequence[Recording]) -> tuple[list[Recording], float
         )
     origin = min(_lowest_line_position_m(r) for r in recordings)
     rebased = [
-        dataclasses.replace(
-            r, metadata=r.metadata.model_copy(update={"line_position_m": r.metadata.line_position_m - origin})
-        )
+        dataclasses.replace(r, metadata=r.metadata.model_copy(update=_counted_from(r.metadata, origin)))
         for r in recordings
     ]
     return rebased, origin
+
+
+def _counted_from(metadata: RecordingMetadata, origin_m: float) -> dict[str, Any]:
+    """The metadata fields in line positions, counted from ``origin_m``: the first sample's place
+    and the known line profile's section starts (each run then meets the same sections)."""
+    fields: dict[str, Any] = {"line_position_m": metadata.line_position_m - origin_m}
+    profile = metadata.line_gradient_profile
+    if profile is not None:
+        fields["line_gradient_profile"] = profile.model_copy(
+            update={"start_m": [start - origin_m for start in profile.start_m]}
+        )
+    return fields
 
 
 def _lowest_line_position_m(recording: Recording) -> float:
