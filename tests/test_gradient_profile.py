@@ -235,6 +235,8 @@ def test_synth_runs_a_spread_set_over_the_line_profile_and_the_replay_reproduces
             both_directions=True,
         )
     recordings = read_dataset(folder).recordings
+    key = json.loads((tmp_path / "set_key.json").read_text())
+    assert key["gradient_profile"] == {**LINE.model_dump(), "declared": True, "in_line_positions": True}
     assert {r.metadata.line_direction for r in recordings} == {"increasing", "decreasing"}
     assert all(r.metadata.line_gradient_profile == LINE and r.metadata.gradient_profile is None for r in recordings)
     for c in (compare(r) for r in replay_batch(recordings)):

@@ -627,6 +627,8 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
                 "gradient_profile": {
                     **drawn.gradient_profile.model_dump(mode="json"),
                     "declared": drawn.gradient_profile_declared,
+                    # Placed on the line, the starts are line positions (line_gradient_profile).
+                    **({"in_line_positions": True} if drawn.applications[0].line_position_m is not None else {}),
                 }
             }
         ),
