@@ -16,9 +16,9 @@ import pandas as pd
 import pytest
 
 from brakegym import config as cfg
-from brakegym.diagnosis.inputs import on_set_line
+from brakegym.diagnosis.inputs import beyond_the_search_note, line_reach_m, on_set_line
 from brakegym.diagnosis.locate import residual_trace
-from brakegym.diagnosis.pipeline import Diagnoser
+from brakegym.diagnosis.pipeline import Diagnoser, located_start_max_m
 from brakegym.diagnosis.position_steps import find_position_step
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import TRAIN_LENGTH_M, make_effect
@@ -277,3 +277,28 @@ def test_the_stretch_is_located_at_its_place_from_runs_both_ways(both_ways_sets)
 def test_runs_both_ways_need_a_line_spread(tmp_path):
     with pytest.raises(ValueError, match="runs both ways along the line need a line spread"):
         synthesize(tmp_path / "set", 2, seed=1, both_directions=True)
+
+
+def test_the_reach_along_the_line_is_reported_and_a_reach_beyond_the_search_is_said(spread_set):
+    """The recordings' reach along the line from the origin: the farthest point a run towards
+    growing positions covers (its first sample's place plus its odometry's last reading, within
+    the odometer's noise). Where it passes the furthest start the located effects can take, the
+    report says that part of the line was not searched."""
+    recordings = read_dataset(spread_set).recordings
+    diagnoser = Diagnoser(recordings)
+    farthest = max(r.metadata.line_position_m + np.nanmax(r.data["position_m"]) for r in recordings)
+    assert diagnoser.line_reach_m == pytest.approx(farthest - diagnoser.line_origin_m, abs=1.0)
+    assert (
+        line_reach_m(
+            [
+                dataclasses.replace(r, metadata=r.metadata.model_copy(update={"line_position_m": None}))
+                for r in recordings
+            ]
+        )
+        is None
+    )
+    bound = located_start_max_m()
+    assert bound == 2500.0  # the start bounds of gradient_section, gradient_sections and adhesion_section
+    assert beyond_the_search_note(diagnoser.line_reach_m, bound) is None
+    note = beyond_the_search_note(4012.4, bound)
+    assert "reach 4012 m along the line from its origin" in note and "start in 0-2500 m" in note

@@ -288,6 +288,35 @@ def _counted_from(metadata: RecordingMetadata, origin_m: float) -> dict[str, Any
     return fields
 
 
+def line_reach_m(recordings: Sequence[Recording]) -> float | None:
+    """How far along the line the recordings reach: the highest line position any of them
+    reaches (its first sample's, or that plus the distance it covers where it runs towards growing
+    positions), in the recordings' own line positions (from the origin after
+    :func:`on_set_line`). None where they are not placed on the line."""
+    if any(r.metadata.line_position_m is None for r in recordings) or not recordings:
+        return None
+    reach = []
+    for recording in recordings:
+        start = float(recording.metadata.line_position_m)  # type: ignore[arg-type]
+        ahead = recording.metadata.line_direction_sign > 0
+        reach.append(start + float(np.nanmax(measured_distance_m(recording))) if ahead else start)
+    return max(reach)
+
+
+def beyond_the_search_note(reach_m: float | None, search_start_max_m: float) -> str | None:
+    """A sentence for the report where the recordings reach further along the line than the
+    located effects' starts are searched (None where they do not): an effect that begins beyond
+    ``search_start_max_m`` is not found, and the report must not read as if the whole line had
+    been searched."""
+    if reach_m is None or reach_m <= search_start_max_m:
+        return None
+    return (
+        f"The recordings reach {reach_m:.0f} m along the line from its origin, but a section of gradient or a "
+        f"stretch of low adhesion is searched with its start in 0-{search_start_max_m:g} m from the origin: one "
+        "that begins further along is not found (diagnose the recordings of that part of the line on their own)."
+    )
+
+
 def _lowest_line_position_m(recording: Recording) -> float:
     """The lowest line position a placed recording reaches: its first sample's, or where it runs
     towards falling positions, that less the distance it covers."""

@@ -61,7 +61,14 @@ from ..recordings.format import Recording, read_dataset
 from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
 from .fitting import FitProblem, FitResult
-from .inputs import accelerometer_bias_sigma, chain_report, on_set_line, zero_corrected
+from .inputs import (
+    accelerometer_bias_sigma,
+    beyond_the_search_note,
+    chain_report,
+    line_reach_m,
+    on_set_line,
+    zero_corrected,
+)
 from .judging import Candidate, Judge, shared_friction_shift
 from .locate import (
     NOISE_CHANNELS,
@@ -95,6 +102,19 @@ class Diagnosis:
     problem: FitProblem
 
 
+def located_start_max_m() -> float:
+    """The furthest start from the line origin that the library's effects on part of the line
+    (those screened from a located step, not on a grid) can take: the lowest upper bound of their
+    ``*_start_m`` parameters."""
+    return min(
+        spec.upper
+        for effect in EFFECTS.values()
+        if not effect.grid_screened
+        for spec in effect.parameters
+        if spec.name.endswith("start_m")
+    )
+
+
 class Diagnoser:
     """Diagnoses the recordings of one vehicle (see the module documentation)."""
 
@@ -107,6 +127,7 @@ class Diagnoser:
     ) -> None:
         # Placed on one line where they carry line positions (counted from the set's origin).
         self.recordings, self.line_origin_m = on_set_line(recordings)
+        self.line_reach_m = line_reach_m(self.recordings)
         vehicles = {r.vehicle.name for r in self.recordings}
         if len(vehicles) > 1:
             raise ValueError(
@@ -289,6 +310,12 @@ class Diagnoser:
         # Positions of located effects count from here along the line (None: from each
         # recording's first sample).
         report["line_origin_m"] = self.line_origin_m
+        # How far along the line from the origin the recordings reach (None: not placed on it).
+        reach = self.line_reach_m
+        report["line_reach_m"] = None if reach is None else round(reach, 1)
+        note = beyond_the_search_note(reach, located_start_max_m())
+        if note is not None:
+            report["summary"] += " " + note
         report["measurement_chain"] = chain_report(self.recordings)
         report["noise_model"] = {
             CHANNEL_NAMES[channel]: noise_model_entry(model) for channel, model in self.noise_models.items()
