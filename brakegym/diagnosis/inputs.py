@@ -268,7 +268,7 @@ def on_set_line(recordings: Sequence[Recording]) -> tuple[list[Recording], float
             f"metadata field 'line_position_m' is given for {sum(placed)} of {len(placed)} recordings but not for "
             f"{', '.join(missing)}: give it for all of a set's recordings (they are placed on one line) or for none"
         )
-    origin = min(_lowest_line_position_m(r) for r in recordings)
+    origin = min(_line_span_m(r)[0] for r in recordings)
     rebased = [
         dataclasses.replace(r, metadata=r.metadata.model_copy(update=_counted_from(r.metadata, origin)))
         for r in recordings
@@ -293,14 +293,9 @@ def line_reach_m(recordings: Sequence[Recording]) -> float | None:
     reaches (its first sample's, or that plus the distance it covers where it runs towards growing
     positions), in the recordings' own line positions (from the origin after
     :func:`on_set_line`). None where they are not placed on the line."""
-    if any(r.metadata.line_position_m is None for r in recordings) or not recordings:
+    if not recordings or any(r.metadata.line_position_m is None for r in recordings):
         return None
-    reach = []
-    for recording in recordings:
-        start = float(recording.metadata.line_position_m)  # type: ignore[arg-type]
-        ahead = recording.metadata.line_direction_sign > 0
-        reach.append(start + float(np.nanmax(measured_distance_m(recording))) if ahead else start)
-    return max(reach)
+    return max(_line_span_m(r)[1] for r in recordings)
 
 
 def beyond_the_search_note(reach_m: float | None, search_start_max_m: float) -> str | None:
@@ -317,10 +312,9 @@ def beyond_the_search_note(reach_m: float | None, search_start_max_m: float) -> 
     )
 
 
-def _lowest_line_position_m(recording: Recording) -> float:
-    """The lowest line position a placed recording reaches: its first sample's, or where it runs
-    towards falling positions, that less the distance it covers."""
+def _line_span_m(recording: Recording) -> tuple[float, float]:
+    """The lowest and highest line positions a placed recording reaches: its first sample's, and
+    that plus or minus the distance it covers, as it runs towards growing or falling positions."""
     start = float(recording.metadata.line_position_m)  # type: ignore[arg-type]
-    if recording.metadata.line_direction_sign > 0:
-        return start
-    return start - float(np.nanmax(measured_distance_m(recording)))
+    end = start + recording.metadata.line_direction_sign * float(np.nanmax(measured_distance_m(recording)))
+    return min(start, end), max(start, end)

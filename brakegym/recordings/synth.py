@@ -214,6 +214,11 @@ class Application:
     line_position_m: float | None = None  # where along the line its first sample is (None: not said)
     line_direction: str | None = None  # "decreasing" for a run towards falling line positions (None: not said)
 
+    @property
+    def line_direction_sign(self) -> float:
+        """+1 for a run towards growing line positions, -1 towards falling (as the metadata's)."""
+        return -1.0 if self.line_direction == "decreasing" else 1.0
+
 
 def _round(values: np.ndarray, resolution: float) -> np.ndarray:
     # Snap to the resolution and print-round, so the CSV holds short decimals.
@@ -355,14 +360,14 @@ def synthesize(
     _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
     if not (math.isfinite(line_spread_m) and line_spread_m >= 0):
         raise ValueError(f"line spread {line_spread_m} m: must be a non-negative finite number")
-    drawn = _draw_set(
-        n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
-    )
     if both_directions and not line_spread_m > 0:
         raise ValueError(
             "runs both ways along the line need a line spread of more than 0 m "
             "(line_spread_m, --line-spread-m): give one"
         )
+    drawn = _draw_set(
+        n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
+    )
     if line_spread_m > 0:
         drawn.applications = _placed_on_the_line(drawn.applications, seed, line_spread_m, both_directions)
     drawn.gradient_profile, drawn.gradient_profile_declared = gradient_profile, declare_gradient_profile
@@ -648,7 +653,7 @@ def _simulate_truth(drawn: _DrawnSet, chosen: Sequence[Effect]) -> tuple[Effecte
         form.friction_modifiers() if form is not None else (),
         form.wheel_brake_forces(command_time) if form is not None else (),
         line_position_at_start_m=np.array([a.line_position_m or 0.0 for a in applications]),
-        line_direction_sign=np.array([-1.0 if a.line_direction == "decreasing" else 1.0 for a in applications]),
+        line_direction_sign=np.array([a.line_direction_sign for a in applications]),
     )
     add_gradient_profiles(model, [_run_profile(drawn.gradient_profile, a) for a in applications])
     if any(isinstance(e, RunningResistanceEffect) for e in chosen):
@@ -795,8 +800,7 @@ def _run_profile(profile: GradientProfile | None, app: Application) -> GradientP
     an application placed on the line, its run's part of the profile in line positions."""
     if profile is None or app.line_position_m is None:
         return profile
-    sign = -1.0 if app.line_direction == "decreasing" else 1.0
-    return LineGradientProfile(**profile.model_dump()).along_run(app.line_position_m, sign)
+    return LineGradientProfile(**profile.model_dump()).along_run(app.line_position_m, app.line_direction_sign)
 
 
 def _metadata(app: Application, decel_source: str, gradient_profile: GradientProfile | None) -> RecordingMetadata:
