@@ -278,7 +278,7 @@ class FitProblem:
         lower, upper = self.bounds(free)
         copies, steps = [], []
         for j, parameter in enumerate(free if effect_too else ()):
-            step = 1e-3 * (parameter.spec.upper - parameter.spec.lower)
+            step = parameter.spec.difference_step * (parameter.spec.upper - parameter.spec.lower)
             step = step if x[j] + step <= upper[j] else -step
             point = x.copy()
             point[j] += step

@@ -83,6 +83,7 @@ class WetPads(Effect):
             ((0.2, 1.5),),
             description="heat into one disc that dries it by a factor e",
             log_grid=True,
+            difference_step=1e-2,
         ),
     )
     RELEVANT_LOSS = 0.08
@@ -117,7 +118,7 @@ class ThermalFade(Effect):
 
     id = "thermal_fade"
     parameters = (
-        ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),)),
+        ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),), difference_step=1e-2),
         ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),), lower_is_physical=True),
     )
     # The share of mu a fade must take at the hottest friction surface reached, as large as a
