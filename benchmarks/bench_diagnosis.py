@@ -593,6 +593,14 @@ def main() -> None:
     )
     parser.add_argument("--sets", type=int)
     parser.add_argument("--seed", type=int)
+    parser.add_argument(
+        "--skip-sets",
+        type=int,
+        default=0,
+        metavar="N",
+        help="begin after the first N sets of --sets/--seed (the n-th set is the same in any run: resume an "
+        "interrupted run, its rows in another --json file)",
+    )
     parser.add_argument("--recordings", type=int, default=DEFAULT_RECORDINGS)
     parser.add_argument("--free-share", type=float, default=0.3, help="share of effect-free sets (default 0.3)")
     parser.add_argument("--top-singles", type=int, default=3)
@@ -622,6 +630,8 @@ def main() -> None:
             rows += json.loads(Path(path).read_text())
         summarize(rows, sum(row["seconds"] for row in rows), args.summary_json)
         return
+    if args.rerun and args.skip_sets:
+        parser.error("--skip-sets belongs to a run of --sets/--seed; with --rerun choose sets by --set-seed")
     if args.rerun and (args.measurement_chain or args.model_form):
         parser.error("--rerun synthesizes each set through the chain and model form its row names; drop those")
     if args.rerun:
@@ -631,9 +641,11 @@ def main() -> None:
     else:
         # Fail on a bad name before the first set.
         synth_options(args.measurement_chain, args.model_form)
+        if not 0 <= args.skip_sets < args.sets:
+            parser.error(f"--skip-sets {args.skip_sets}: must be at least 0 and below --sets {args.sets}")
         jobs = list(
             drawn_jobs(args.seed, args.sets, args.free_share, args.recordings, args.measurement_chain, args.model_form)
-        )
+        )[args.skip_sets :]
     rows: list[dict[str, Any]] = []
     started = time.time()
     try:
