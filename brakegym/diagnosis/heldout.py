@@ -9,7 +9,7 @@ A parameter that only the recording left out informs (the others hold less than
 ``uninformed_share`` of its information, the curvature of the chi^2 along it) is not refitted
 for its prediction: the others' step along it is their noise divided by next to nothing, and runs
 to a bound. Such a parameter is predicted as the others know it: a size
-(:attr:`~brakegym.effects.ParameterSpec.is_size`) at its no-effect value, so that the part of the
+(``ParameterSpec.is_size``) at its no-effect value, so that the part of the
 effect it sizes is absent (the second section of a profile that only this recording brakes
 across), any other at the fit.
 """
