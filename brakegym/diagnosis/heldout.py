@@ -5,13 +5,14 @@ The refit is one weighted Gauss-Newton step from the fit to every recording, kep
 parameter bounds; the recording left out is then simulated with those parameters, its own
 nuisance refitted by chord iterations as in screening.
 
-A parameter that only the recording left out informs (the others hold less than
-``uninformed_share`` of its information, the curvature of the chi^2 along it) is not refitted
-for its prediction: the others' step along it is their noise divided by next to nothing, and runs
-to a bound. Such a parameter is predicted as the others know it: a size
-(``ParameterSpec.is_size``) at its no-effect value, so that the part of the
-effect it sizes is absent (the second section of a profile that only this recording brakes
-across), any other at the fit.
+A size (``ParameterSpec.is_size``) that only the recording left out informs (the others hold
+less than ``uninformed_share`` of its information, the curvature of the chi^2 along it) is not
+refitted for its prediction: the others' step along it is their noise divided by next to
+nothing, and runs to a bound. It is predicted as the others know it, at its no-effect value: the
+part of the effect it sizes is absent (the second section of a profile that only this recording
+brakes across). Every other parameter takes the others' step as before; held at the fit, a
+place only the recording informs (a fade's onset that only the hottest stop reaches) would carry
+the recording's own data into its prediction.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ class HeldOut:
     residual: np.ndarray  # every row predicted with the effect fitted without its recording
     sse: np.ndarray  # per recording, effective (its friction-factor prior row included)
     steps: np.ndarray  # (recordings, effect parameters): each recording's leave-out change
-    #: per recording, the parameters only it informs, not refitted for its prediction
+    #: per recording, the sizes only it informs, at their no-effect values in its prediction
     uninformed: list[tuple[str, ...]] = field(default_factory=list)
 
 
@@ -63,7 +64,7 @@ def held_out(
     points = np.tile(fit.x, (problem.n, 1))
     uninformed = []
     for i in range(problem.n):
-        alone = _informed_alone(information, i, uninformed_share)
+        alone = _informed_alone(information, i, uninformed_share) & np.array([f.spec.is_size for f in fit.free])
         step = steps[i] if not alone.any() else _bounded_step(problem, fit, information, i, ~alone)
         points[i, :p] = _predicted_parameters(problem, fit, step, alone)
         uninformed.append(tuple(fit.free[j].name for j in np.flatnonzero(alone)))
@@ -125,15 +126,13 @@ def _bounded_step(
 
 def _predicted_parameters(problem: FitProblem, fit: FitResult, step: np.ndarray, alone: np.ndarray) -> np.ndarray:
     """The effect parameters a recording is predicted with: the fit moved by its leave-out step,
-    inside the bounds, and each size only it informs at its no-effect value (which may lie
-    outside the bounds: an adhesion limit is absent at infinite adhesion)."""
+    inside the bounds, and each size ``alone`` at its no-effect value (which may lie outside the
+    bounds: an adhesion limit is absent at infinite adhesion)."""
     p = len(fit.free)
     lower, upper = problem.bounds(fit.free)
     values = np.clip(fit.x[:p] + step, lower[:p], upper[:p])
     for j in np.flatnonzero(alone):
-        spec = fit.free[j].spec
-        if spec.is_size:
-            values[j] = spec.no_effect
+        values[j] = fit.free[j].spec.no_effect
     return values
 
 
