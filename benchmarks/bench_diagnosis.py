@@ -78,7 +78,6 @@ CANDIDATE_KEYS = (
     "heldout_gain",
     "heldout_t",
     "heldout_p",
-    "heldout_uninformed",
     "heldout_acts_on",
     "heldout_gain_per_recording",
     "friction_level_shift",

@@ -170,18 +170,13 @@ class Judge:
         self.baseline = baseline
         self.chi2_base = weighting.chi2(baseline.residual)
         self.log_n = math.log(max(weighting.n_eff_total, 2.0))
-        self.base_sse = self._held_out(baseline).sse
-
-    def _held_out(self, fit: FitResult) -> HeldOut:
-        return held_out(
-            self.problem, self.weighting, fit, self.rules.screen_chord_iterations, self.rules.heldout_uninformed_share
-        )
+        self.base_sse = held_out(problem, weighting, baseline, rules.screen_chord_iterations).sse
 
     def candidate(self, effect_ids: tuple[str, ...], fit: FitResult) -> Candidate:
         """A fit judged: its BIC against the unmodified model, held-out error and relevance."""
         chi2 = self.weighting.chi2(fit.residual)
         n_parameters = len(fit.free) + len(fit.fixed)
-        heldout = self._held_out(fit)
+        heldout = held_out(self.problem, self.weighting, fit, self.rules.screen_chord_iterations)
         candidate = Candidate(effect_ids, fit, chi2, chi2 - self.chi2_base + n_parameters * self.log_n, heldout)
         surface = [np.nanmax(r.states["T_fric_C"]) for r in fit.replays if "T_fric_C" in r.states]
         evidence = dataclasses.replace(
@@ -245,9 +240,6 @@ class Judge:
         candidate.report["heldout_t"] = round(t, 2) if math.isfinite(t) else None
         candidate.report["heldout_p"] = float(f"{p:.3g}") if math.isfinite(p) else None
         candidate.report["heldout_acts_on"] = [problem.recordings[i].name for i in np.flatnonzero(acts_on)]
-        candidate.report["heldout_uninformed"] = {
-            problem.recordings[i].name: list(names) for i, names in enumerate(candidate.heldout.uninformed) if names
-        }
         candidate.report["heldout_gain_per_recording"] = [round(float(x), 4) for x in shares]
         candidate.passes_bic_rule = bool(bic_rule)
         candidate.passes_heldout_rule = self._consistent(t, p)

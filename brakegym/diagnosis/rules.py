@@ -52,12 +52,6 @@ class DiagnosisRules:
     heldout_acts_share: float = 0.10
     #: the paired t needs at least this many recordings acted on
     heldout_min_recordings: int = 2
-    #: a size of which the other recordings hold less than this share of the information is at its
-    #: no-effect value in a recording's held-out prediction (:mod:`.heldout`): the recording holds
-    #: four times what all others hold together (ASSUMED). On a concealed two-section
-    #: profile the one stop braking far into the second section held 90 % of its gradient's
-    #: information, and the others' step took that gradient to near its bound.
-    heldout_uninformed_share: float = 0.2
     #: a candidate fitted within this share of a parameter's range (of its logarithm on a log
     #: grid) of a bound that is not physical is not selected: the data want the effect beyond the
     #: sizes the library gives it (:meth:`brakegym.effects.ParameterSpec.at_range_end`)

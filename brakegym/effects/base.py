@@ -50,9 +50,6 @@ class ParameterSpec:
     fit's trust region shrinks and the fit crawls along its valley. Such a parameter (a fade's
     onset, a wet pad's drying energy) takes a step of 1 % instead of the default 0.1 %; see the
     coverage measurements in the diagnosis docs.
-    ``is_size``: the parameter sizes the effect (or, in a profile, its own section): at
-    ``no_effect`` that part is absent whatever the other parameters. The held-out rule predicts a
-    recording without a part whose size only that recording informs.
     """
 
     name: str
@@ -67,13 +64,6 @@ class ParameterSpec:
     lower_is_physical: bool = False
     upper_is_physical: bool = False
     difference_step: float = 1e-3
-    is_size: bool = False
-
-    def __post_init__(self) -> None:
-        if self.is_size and self.no_effect is None:
-            raise ValueError(f"parameter {self.name!r}: a size (is_size) needs its no_effect value")
-        if not 0.0 < self.difference_step < 0.5:
-            raise ValueError(f"parameter {self.name!r}: difference_step {self.difference_step!r} is not in (0, 0.5)")
 
     def check(self, effect_id: str, value: Value) -> np.ndarray:
         array = np.asarray(value, dtype=float)

@@ -22,7 +22,7 @@ class FrictionLevel(Effect):
     """
 
     id = "friction_level"
-    parameters = (ParameterSpec("mu_scale", "", 0.5, 1.5, 1.0, ((0.75, 0.95), (1.05, 1.25)), is_size=True),)
+    parameters = (ParameterSpec("mu_scale", "", 0.5, 1.5, 1.0, ((0.75, 0.95), (1.05, 1.25))),)
     # A set's mean friction may sit up to one sigma of mu_0 (about 3 %) off nominal.
     RELEVANT_CHANGE = 0.04
     separating_measurements = {
@@ -70,7 +70,6 @@ class WetPads(Effect):
             ((0.15, 0.5),),
             description="share of mu lost at the start",
             lower_is_physical=True,
-            is_size=True,
         ),
         # exp(-E / E_dry): 0.7 and 1.7 MJ are far apart, 5 and 8 MJ nearly alike, so the energy is
         # screened on a geometric grid; a linear grid's points (1.7, 5.0, 8.3 MJ) start a fit of
@@ -120,7 +119,7 @@ class ThermalFade(Effect):
     id = "thermal_fade"
     parameters = (
         ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),), difference_step=1e-2),
-        ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),), lower_is_physical=True, is_size=True),
+        ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),), lower_is_physical=True),
     )
     # The share of mu a fade must take at the hottest friction surface reached, as large as a
     # relevant friction level.
@@ -171,7 +170,7 @@ class AdhesionLimit(Effect):
     load being the train's (gravitational) mass shared evenly by its axles."""
 
     id = "adhesion_limit"
-    parameters = (ParameterSpec("adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),), is_size=True),)
+    parameters = (ParameterSpec("adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),)),)
     order = 100
     # A cap counts when it holds the deceleration below the measured peak.
     RELEVANT_BELOW_PEAK = 0.97
@@ -226,7 +225,7 @@ class AdhesionSection(Effect):
             lower_is_physical=True,  # the recordings begin on it
         ),
         ParameterSpec("patch_length_m", "m", 50.0, 2500.0, 0.0, ((150.0, 500.0),), description="how long it is"),
-        ParameterSpec("patch_adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),), is_size=True),
+        ParameterSpec("patch_adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),)),
     )
     order = AdhesionLimit.order + 1  # it sees the whole line's cap, if any
     TRAIN_LENGTH_M = TRAIN_LENGTH_M

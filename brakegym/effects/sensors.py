@@ -14,7 +14,7 @@ class SpeedSensorScale(Effect):
 
     id = "speed_sensor_scale"
     sensor = True
-    parameters = (ParameterSpec("scale", "", 0.9, 1.1, 1.0, ((0.95, 0.99), (1.01, 1.05)), is_size=True),)
+    parameters = (ParameterSpec("scale", "", 0.9, 1.1, 1.0, ((0.95, 0.99), (1.01, 1.05))),)
     RELEVANT_CHANGE = 0.007
 
     @classmethod
@@ -31,7 +31,7 @@ class TemperatureSensorLag(Effect):
 
     id = "temperature_sensor_lag"
     sensor = True
-    parameters = (ParameterSpec("tau_s", "s", 0.0, 60.0, 0.0, ((2.0, 20.0),), lower_is_physical=True, is_size=True),)
+    parameters = (ParameterSpec("tau_s", "s", 0.0, 60.0, 0.0, ((2.0, 20.0),), lower_is_physical=True),)
     RELEVANT_TAU_S = 1.0
 
     @classmethod

@@ -30,7 +30,6 @@ class Gradient(Effect):
             0.0,
             ((-15.0, -2.0), (2.0, 15.0)),
             description="rise over run x 1000 in the direction of travel",
-            is_size=True,
         ),
     )
     RELEVANT_PERMIL = 1.0
@@ -87,7 +86,6 @@ class GradientSection(Effect):
             0.0,
             ((-15.0, -4.0), (4.0, 15.0)),
             description="rise over run x 1000 towards growing positions along the line",
-            is_size=True,
         ),
     )
     TRAIN_LENGTH_M = TRAIN_LENGTH_M
@@ -143,7 +141,6 @@ class GradientSections(Effect):
             ranges,
             description=f"{spec.description} ({which} section)",
             lower_is_physical=spec.lower_is_physical,
-            is_size=spec.is_size,
         )
         for which, section_ranges in (
             ("first", (((100.0, 300.0),), ((200.0, 400.0),), ((-15.0, -4.0), (4.0, 15.0)))),

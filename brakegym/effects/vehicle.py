@@ -16,7 +16,7 @@ class RotatingMass(Effect):
     and axle loads act on m."""
 
     id = "rotating_mass"
-    parameters = (ParameterSpec("mass_factor", "", -0.2, 0.3, 0.0, ((0.04, 0.15),), is_size=True),)
+    parameters = (ParameterSpec("mass_factor", "", -0.2, 0.3, 0.0, ((0.04, 0.15),)),)
     RELEVANT_FACTOR = 0.03
     separating_measurements = {"brake_unit_failure": "a temperature sensor on a rear disc, or a coasting phase"}
 
@@ -36,7 +36,7 @@ class BrakeUnitFailure(Effect):
     ``emu_8axle`` one failed unit is disc 16, two are discs 15 and 16."""
 
     id = "brake_unit_failure"
-    parameters = (ParameterSpec("failed_units", "units", 0.0, 8.0, 0.0, ((1.0, 4.0),), integer=True, is_size=True),)
+    parameters = (ParameterSpec("failed_units", "units", 0.0, 8.0, 0.0, ((1.0, 4.0),), integer=True),)
 
     @classmethod
     def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
