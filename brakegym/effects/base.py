@@ -65,6 +65,10 @@ class ParameterSpec:
     upper_is_physical: bool = False
     difference_step: float = 1e-3
 
+    def __post_init__(self) -> None:
+        if not 0.0 < self.difference_step < 0.5:
+            raise ValueError(f"parameter {self.name!r}: difference_step {self.difference_step!r} is not in (0, 0.5)")
+
     def check(self, effect_id: str, value: Value) -> np.ndarray:
         array = np.asarray(value, dtype=float)
         if array.ndim > 1:
