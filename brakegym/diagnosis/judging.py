@@ -22,7 +22,10 @@ A candidate is selected when
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
 replaces it by the same rules, judged against the single: the pair must lower the BIC by
 ``select_delta_bic`` below the single's and remove held-out error consistently over the recordings
-the second effect acts on (of the passing pairs, the one with the lowest held-out error). The pairs
+the second effect acts on (of the passing pairs, the one with the lowest held-out error). An
+effect that holds another as a special case (:attr:`brakegym.effects.Effect.extends`: a section
+holds the whole-line gradient, a profile of two sections one section) must beat it by the same
+rules where both are fitted, as a single and in a pair with the same partner. The pairs
 include those of the forward step (:mod:`.pipeline`): the selected single with the effects that
 screen best on top of it. A pair that does not replace the single, but whose second effect is
 relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
@@ -269,17 +272,26 @@ class Judge:
         base_residual = self.baseline.residual
         for candidate in singles:
             candidate.passes = self.beats(candidate, 0.0, self.base_sse, base_residual)
-        by_id = {c.effect_ids: c for c in singles}
         for candidate in singles:
-            # An effect that holds a fitted one as a special case must also beat it, as a pair
-            # beats its single (its report's held-out figures are then against that one).
-            nested = by_id.get((EFFECTS[candidate.effect_ids[0]].extends,))
-            if candidate.passes and nested is not None:
-                candidate.passes = self.beats(
-                    candidate, nested.delta_bic, nested.heldout.sse, nested.heldout.residual, nested.effect_ids
-                ) and float(np.sum(candidate.heldout.sse)) < float(np.sum(nested.heldout.sse))
+            if candidate.passes:
+                candidate.passes = self._beats_nested(candidate, singles)
         passing = [c for c in singles if c.passes]
         return min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
+
+    def _beats_nested(self, candidate: Candidate, others: Sequence[Candidate]) -> bool:
+        """Whether ``candidate`` beats every one of ``others`` that it holds as a special case (its
+        effects with one of them replaced by the effect that one extends, :attr:`Effect.extends`)
+        by every rule, as a pair beats its single; True where it holds none. Its report's held-out
+        figures are then against that one. Without the rule the larger description wins on
+        held-out error alone where the two fit equally well: a section spanning nearly all of the
+        recordings beside a whole-line gradient, chosen by rounding in the step search."""
+        for nested in nested_candidates(candidate, others):
+            if not (
+                self.beats(candidate, nested.delta_bic, nested.heldout.sse, nested.heldout.residual, nested.effect_ids)
+                and float(np.sum(candidate.heldout.sse)) < float(np.sum(nested.heldout.sse))
+            ):
+                return False
+        return True
 
     def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
         """Select among ``singles`` and ``pairs`` (see the module documentation)."""
@@ -297,6 +309,8 @@ class Judge:
                 if self.beats(pair, single.delta_bic, single.heldout.sse, single.heldout.residual, single.effect_ids)
                 and float(np.sum(pair.heldout.sse)) < float(np.sum(single.heldout.sse))
             ]
+            # A pair that holds another passing pair as a special case must beat that one too.
+            better = [pair for pair in better if self._beats_nested(pair, better)]
             if better:
                 selected = min(better, key=lambda c: float(np.sum(c.heldout.sse)))
             else:
@@ -362,3 +376,20 @@ class Judge:
             and 1 <= len(c.report["heldout_acts_on"]) <= rules.unconfirmed_max_recordings
             and c.acting_gain >= rules.unconfirmed_min_gain
         ]
+
+
+def nested_candidates(candidate: Candidate, others: Sequence[Candidate]) -> list[Candidate]:
+    """Those of ``others`` that ``candidate`` holds as a special case: its effects with one of them
+    replaced by the effect that one extends (:attr:`brakegym.effects.Effect.extends`), in the
+    library's order."""
+    order = list(EFFECTS)
+    by_ids = {c.effect_ids: c for c in others}
+    nested = []
+    for effect_id in candidate.effect_ids:
+        extended = EFFECTS[effect_id].extends
+        if extended is None or extended in candidate.effect_ids:
+            continue
+        ids = tuple(sorted([extended if e == effect_id else e for e in candidate.effect_ids], key=order.index))
+        if ids in by_ids:
+            nested.append(by_ids[ids])
+    return nested

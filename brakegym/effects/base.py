@@ -277,8 +277,9 @@ class Effect:
     #: written on one of its two classes (see :func:`brakegym.effects.separating_measurement`).
     separating_measurements: ClassVar[Mapping[str, str]] = {}
     #: the id of an effect this one holds as a special case (a profile of two sections holds one
-    #: section): where both are fitted, this one must beat that one by every rule, as a pair must
-    #: beat its single
+    #: section, a section the whole-line gradient): where both are fitted, this one must beat that
+    #: one by every rule, as a pair must beat its single; so must a pair with it beat the same pair
+    #: with that one
     extends: ClassVar[str | None] = None
 
     def __init__(self, **values: Value) -> None:

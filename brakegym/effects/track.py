@@ -90,6 +90,9 @@ class GradientSection(Effect):
     )
     TRAIN_LENGTH_M = TRAIN_LENGTH_M
     grid_screened = False
+    # A section from the line origin to beyond the recordings' reach is the whole-line gradient:
+    # where the data hold that, the gradient's one parameter is named.
+    extends = Gradient.id
     separating_measurements = {
         "gradient": "recordings that start at other places of the line (a section stays where it is on the line)",
         "running_resistance": "an accelerometer (it does not see a slope, it does see running resistance)",
