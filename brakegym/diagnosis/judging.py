@@ -23,7 +23,7 @@ Of the passing singles the one with the lowest held-out error is selected, and a
 replaces it by the same rules, judged against the single: the pair must lower the BIC by
 ``select_delta_bic`` below the single's and remove held-out error consistently over the recordings
 the second effect acts on (of the passing pairs, the one with the lowest held-out error). An
-effect that holds another as a special case (:attr:`brakegym.effects.Effect.extends`: a section
+effect that holds another as a special case (:attr:`brakegym.effects.base.Effect.extends`: a section
 holds the whole-line gradient, a profile of two sections one section) must beat it by the same
 rules where both are fitted, as a single and in a pair with the same partner. The pairs
 include those of the forward step (:mod:`.pipeline`): the selected single with the effects that
@@ -279,9 +279,8 @@ class Judge:
         return min(passing, key=lambda c: float(np.sum(c.heldout.sse))) if passing else None
 
     def _beats_nested(self, candidate: Candidate, others: Sequence[Candidate]) -> bool:
-        """Whether ``candidate`` beats every one of ``others`` that it holds as a special case (its
-        effects with one of them replaced by the effect that one extends, :attr:`Effect.extends`)
-        by every rule, as a pair beats its single; True where it holds none. Its report's held-out
+        """Whether ``candidate`` beats every one of ``others`` that it holds as a special case
+        (:func:`nested_candidates`) by every rule, as a pair beats its single; True where it holds none. Its report's held-out
         figures are then against that one. Without the rule the larger description wins on
         held-out error alone where the two fit equally well: a section spanning nearly all of the
         recordings beside a whole-line gradient, chosen by rounding in the step search."""
@@ -380,7 +379,7 @@ class Judge:
 
 def nested_candidates(candidate: Candidate, others: Sequence[Candidate]) -> list[Candidate]:
     """Those of ``others`` that ``candidate`` holds as a special case: its effects with one of them
-    replaced by the effect that one extends (:attr:`brakegym.effects.Effect.extends`), in the
+    replaced by the effect that one extends (:attr:`brakegym.effects.base.Effect.extends`), in the
     library's order."""
     order = list(EFFECTS)
     by_ids = {c.effect_ids: c for c in others}
