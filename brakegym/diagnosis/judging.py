@@ -280,10 +280,11 @@ class Judge:
 
     def _beats_nested(self, candidate: Candidate, others: Sequence[Candidate]) -> bool:
         """Whether ``candidate`` beats every one of ``others`` that it holds as a special case
-        (:func:`nested_candidates`) by every rule, as a pair beats its single; True where it holds none. Its report's held-out
-        figures are then against that one. Without the rule the larger description wins on
-        held-out error alone where the two fit equally well: a section spanning nearly all of the
-        recordings beside a whole-line gradient, chosen by rounding in the step search."""
+        (:func:`nested_candidates`) by every rule, as a pair beats its single; True where it holds
+        none. Its report's held-out figures are then against that one. Without the rule the larger
+        description wins on held-out error alone where the two fit equally well: a section
+        spanning nearly all of the recordings beside a whole-line gradient, chosen by rounding in
+        the step search."""
         for nested in nested_candidates(candidate, others):
             if not (
                 self.beats(candidate, nested.delta_bic, nested.heldout.sse, nested.heldout.residual, nested.effect_ids)
