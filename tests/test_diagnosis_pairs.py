@@ -7,9 +7,13 @@ The tolerances were fixed before the tests first ran: a gradient within 1 permil
 ``tests/test_diagnosis.py``), a friction level within 0.03 of its scale.
 """
 
+from types import SimpleNamespace
+
 import pytest
 
 from brakegym.diagnosis import diagnose
+from brakegym.diagnosis.judging import nested_candidates
+from brakegym.effects import in_library_order
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -72,3 +76,23 @@ def test_names_a_friction_level_under_a_speed_sensor_scale(tmp_path):
         assert "friction_level" in report["summary"]
         fitted = entry["pair_parameters"]["mu_scale"]
     assert abs(fitted - mu_scale) <= FRICTION_LEVEL_TOLERANCE, fitted
+
+
+def test_a_pair_holds_the_pair_with_the_effect_its_member_extends():
+    # A gradient section is a whole-line gradient that starts and ends somewhere, and a profile of
+    # two sections holds one section: the pair with the section holds the pair with the gradient.
+    def candidate(*ids):
+        return SimpleNamespace(effect_ids=in_library_order(ids))
+
+    with_gradient = candidate("running_resistance", "gradient")
+    with_section = candidate("gradient_section", "running_resistance")
+    with_level = candidate("friction_level", "gradient")
+    others = [with_gradient, with_level, with_section]
+    assert with_gradient.effect_ids == ("gradient", "running_resistance")
+    assert nested_candidates(with_section, others) == [with_gradient]
+    assert nested_candidates(with_gradient, others) == []
+    assert nested_candidates(candidate("friction_level", "gradient_section"), others) == [with_level]
+    # A member that extends the other member holds nothing: the pair would be one effect.
+    assert nested_candidates(candidate("gradient", "gradient_section"), others) == []
+    profile = candidate("gradient_sections", "running_resistance")
+    assert nested_candidates(profile, others) == [with_section]

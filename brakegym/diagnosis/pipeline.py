@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel
+from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel, in_library_order
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -210,7 +210,7 @@ class Diagnoser:
         unknown = sorted(set(effect_ids) - set(EFFECTS))
         if unknown:
             raise ValueError(f"unknown effect(s) {unknown}; the library has {list(EFFECTS)}")
-        ids = tuple(sorted(effect_ids, key=list(EFFECTS).index))
+        ids = in_library_order(effect_ids)
         problem, rules, fixed = self.problem, self.rules, dict(fixed or {})
         if start is not None:
             missing = [p.name for p in problem.free_parameters(list(ids), fixed) if p.name not in start] + [
@@ -401,7 +401,7 @@ class Diagnoser:
         failed)."""
         pairs = []
         for a, b in itertools.combinations(pairing_pool(singles, self.rules.pairs_from), 2):
-            ids = tuple(sorted((a.effect_ids[0], b.effect_ids[0]), key=list(EFFECTS).index))
+            ids = in_library_order((a.effect_ids[0], b.effect_ids[0]))
             first, second = (a, b) if ids[0] == a.effect_ids[0] else (b, a)
             fixed = {**first.fit.fixed, **second.fit.fixed}
             start = np.concatenate(
@@ -434,7 +434,7 @@ class Diagnoser:
         new_pairs = []
         for effect_id in self._with_shared_shift(promising, rules.forward_pairs, screened):
             point = screened[effect_id]
-            ids = tuple(sorted((selected_id, effect_id), key=list(EFFECTS).index))
+            ids = in_library_order((selected_id, effect_id))
             fits = []
             for fixed, nuisance in [(point.fixed, point.nuisance)] + [
                 (neighbour, given.starts(effect_id, neighbour, point.theta[None])[0])

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence
+from ..effects import EFFECTS, Evidence, in_library_order
 from .fitting import FitProblem, FitResult, NuisanceProfile
 from .rules import DiagnosisRules
 from .weighting import Weighting
@@ -149,7 +149,7 @@ class Screening:
     def _with_given(self, effect_id: str, fixed: dict[str, float]) -> tuple[list[str], dict[str, float]]:
         """The effect ids of a screened point (the given effects with ``effect_id``, in the
         library's order) and its held parameters."""
-        ids = sorted({*self.given_ids, effect_id}, key=list(EFFECTS).index)
+        ids = list(in_library_order({*self.given_ids, effect_id}))
         return ids, {**self.given_parameters, **fixed}
 
     def starts(self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray) -> np.ndarray:

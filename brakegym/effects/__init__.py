@@ -32,7 +32,7 @@ effects by what they act on: :mod:`.track`, :mod:`.friction`, :mod:`.vehicle`, :
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +63,13 @@ EFFECTS: dict[str, type[Effect]] = {
         GradientSections,
     )
 }
+
+
+def in_library_order(effect_ids: Iterable[str]) -> tuple[str, ...]:
+    """``effect_ids`` in the order of :data:`EFFECTS`: the one spelling of a combination of
+    effects, so that a pair fitted in either order is one key."""
+    order = list(EFFECTS)
+    return tuple(sorted(effect_ids, key=order.index))
 
 
 def effect_class(effect_id: str) -> type[Effect]:
@@ -180,6 +187,7 @@ __all__ = [
     "apply_effects",
     "effect_class",
     "effects_from_config",
+    "in_library_order",
     "load_effects",
     "make_effect",
     "separating_measurement",
