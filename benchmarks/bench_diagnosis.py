@@ -33,7 +33,10 @@ of the nominal 95 % intervals per parameter on the sets where exactly the effect
 selected; ``--summary-json`` writes those numbers.
 
 ``--measurement-chain NAME`` and ``--model-form NAME`` synthesize the sets as ``brakegym synth``
-does with those options (rows record both; ``--rerun`` uses a row's own). ``--method sindy``
+does with those options, and ``--random-library along_track`` draws their effects as ``brakegym
+synth --random-library along_track`` does: one effect located along the line in every set with
+effects, and one of the ten beside it in half of them (rows record all three; ``--rerun`` uses a
+row's own). ``--method sindy``
 judges the same sets by the sparse-regression baseline (:mod:`brakegym.diagnosis.baseline`, the
 ``baseline`` extra); a row's ``seconds`` is the method's time alone, without the synthesis.
 
@@ -62,7 +65,7 @@ from brakegym.diagnosis import diagnose
 from brakegym.effects import EFFECTS
 from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.model_form import load_model_form
-from brakegym.recordings.synth import synthesize
+from brakegym.recordings.synth import RANDOM_LIBRARIES, synthesize
 
 DEFAULT_RECORDINGS = 8
 METHODS = ("brakegym", "sindy")
@@ -110,6 +113,7 @@ def expressed_effects(row: dict[str, Any]) -> list[str]:
             row.get("recordings", DEFAULT_RECORDINGS),
             row["seed"],
             random_effects=True,
+            random_library=row.get("random_library", "default"),
             base_offset=row["base_offset"],
             key_path=Path(tmp) / "key.json",
             **synth_options(row.get("measurement_chain"), row.get("model_form")),
@@ -140,9 +144,10 @@ def run_set(
     tmp: Path,
     chain: str | None = None,
     form: str | None = None,
+    library: str = "default",
 ) -> dict[str, Any]:
-    """Synthesize one set (through ``chain`` and ``form``), judge it blind by ``args.method``,
-    and judge the verdict against the key."""
+    """Synthesize one set (through ``chain`` and ``form``, its effects drawn from ``library``),
+    judge it blind by ``args.method``, and judge the verdict against the key."""
     # Named by the set seed: a rerun may hold the same index from several runs.
     folder = tmp / f"set_{seed}"
     result = synthesize(
@@ -150,6 +155,7 @@ def run_set(
         recordings,
         seed,
         random_effects=not free,
+        random_library=library if not free else "default",
         base_offset=offset,
         key_path=tmp / f"key_{seed}.json",
         **synth_options(chain, form),
@@ -166,6 +172,7 @@ def run_set(
         "method": args.method,
         "measurement_chain": chain,
         "model_form": form,
+        "random_library": library,
         "truth": result.key["effects"],
         "out_of_library": out_of_library,
         "base_offset": offset,
@@ -516,10 +523,16 @@ def summarize_method(rows: list[dict[str, Any]], seconds: float) -> None:
 
 
 def drawn_jobs(
-    seed: int, sets: int, free_share: float, recordings: int, chain: str | None = None, form: str | None = None
+    seed: int,
+    sets: int,
+    free_share: float,
+    recordings: int,
+    chain: str | None = None,
+    form: str | None = None,
+    library: str = "default",
 ):
-    """(index, set seed, effect-free, base offset, recordings, measurement chain, model form) of a
-    run's sets."""
+    """(index, set seed, effect-free, base offset, recordings, measurement chain, model form,
+    random library) of a run's sets."""
     rng = np.random.default_rng(seed)
     for index in range(sets):
         # Drawn in this order whatever happens in the set, so that the n-th set is the same in a
@@ -527,7 +540,7 @@ def drawn_jobs(
         set_seed = int(rng.integers(2**31))
         free = bool(rng.random() < free_share)
         offset = free and bool(rng.random() < 0.5)
-        yield index, set_seed, free, offset, recordings, chain, form
+        yield index, set_seed, free, offset, recordings, chain, form, library
 
 
 def rerun_jobs(
@@ -563,6 +576,7 @@ def rerun_jobs(
                 row.get("recordings", DEFAULT_RECORDINGS),
                 row.get("measurement_chain"),
                 row.get("model_form"),
+                row.get("random_library", "default"),
             )
 
 
@@ -617,6 +631,13 @@ def main() -> None:
         help="synthesize every set with this model form (as brakegym synth; e.g. real_train)",
     )
     parser.add_argument(
+        "--random-library",
+        choices=RANDOM_LIBRARIES,
+        default="default",
+        help="what a set's effects are drawn from (as brakegym synth --random-library): default, or along_track "
+        "(one effect located along the line in every set with effects)",
+    )
+    parser.add_argument(
         "--method",
         choices=METHODS,
         default="brakegym",
@@ -632,8 +653,10 @@ def main() -> None:
         return
     if args.rerun and args.skip_sets:
         parser.error("--skip-sets belongs to a run of --sets/--seed; with --rerun choose sets by --set-seed")
-    if args.rerun and (args.measurement_chain or args.model_form):
-        parser.error("--rerun synthesizes each set through the chain and model form its row names; drop those")
+    if args.rerun and (args.measurement_chain or args.model_form or args.random_library != "default"):
+        parser.error(
+            "--rerun synthesizes each set through the chain, model form and random library its row names; drop those"
+        )
     if args.rerun:
         jobs = list(rerun_jobs(args.rerun, args.where, args.max_sets, args.single, args.set_seed))
     elif args.sets is None or args.seed is None:
@@ -644,14 +667,22 @@ def main() -> None:
         if not 0 <= args.skip_sets < args.sets:
             parser.error(f"--skip-sets {args.skip_sets}: must be at least 0 and below --sets {args.sets}")
         jobs = list(
-            drawn_jobs(args.seed, args.sets, args.free_share, args.recordings, args.measurement_chain, args.model_form)
+            drawn_jobs(
+                args.seed,
+                args.sets,
+                args.free_share,
+                args.recordings,
+                args.measurement_chain,
+                args.model_form,
+                args.random_library,
+            )
         )[args.skip_sets :]
     rows: list[dict[str, Any]] = []
     started = time.time()
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            for number, (index, seed, free, offset, recordings, chain, form) in enumerate(jobs, start=1):
-                row = run_set(index, seed, free, offset, recordings, args, Path(tmp), chain, form)
+            for number, (index, seed, free, offset, recordings, chain, form, library) in enumerate(jobs, start=1):
+                row = run_set(index, seed, free, offset, recordings, args, Path(tmp), chain, form, library)
                 rows.append(row)
                 print(
                     f"[{number}/{len(jobs)}] {time.time() - started:.0f} s  truth {set_label(row):40s} "

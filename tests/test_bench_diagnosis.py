@@ -266,3 +266,12 @@ def test_friction_factor_study_reads_each_recordings_factor_and_braking_pressure
     assert stems == ["rec_001", "rec_002", "rec_003", "rec_004"]
     assert np.all(np.abs(factors - 1.0) < 0.15), factors
     assert np.all((pressures > 1.0) & (pressures < 5.0)), pressures
+
+
+def test_a_random_library_keeps_the_runs_sets_and_rides_with_each(bench):
+    # The n-th set of a run has the same seed whatever its effects are drawn from; each job
+    # carries the library to the synthesis, and rows record it for a rerun.
+    default = list(bench.drawn_jobs(4, 6, 0.3, 8))
+    along = list(bench.drawn_jobs(4, 6, 0.3, 8, library="along_track"))
+    assert [job[:-1] for job in along] == [job[:-1] for job in default]
+    assert {job[-1] for job in default} == {"default"} and {job[-1] for job in along} == {"along_track"}

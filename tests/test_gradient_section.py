@@ -22,7 +22,13 @@ from brakegym.effects import EFFECTS, Evidence, GradientSection, make_effect
 from brakegym.effects.hooks import GradientSectionForce
 from brakegym.recordings import read_dataset
 from brakegym.recordings.measurement import MeasurementModel
-from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, random_requests, synthesize
+from brakegym.recordings.synth import (
+    ALONG_TRACK_EFFECT_IDS,
+    RANDOM_EFFECT_IDS,
+    EffectRequest,
+    random_requests,
+    synthesize,
+)
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
 REPO = Path(__file__).resolve().parent.parent
@@ -119,6 +125,30 @@ def test_random_effects_keep_their_library_so_that_a_seed_keeps_its_set():
     rng = np.random.default_rng(5)
     drawn = {request.id for _ in range(200) for request in random_requests(rng)}
     assert drawn == set(RANDOM_EFFECT_IDS)
+
+
+def test_the_along_track_library_puts_one_located_effect_in_every_set():
+    rng = np.random.default_rng(5)
+    draws = [[request.id for request in random_requests(rng, "along_track")] for _ in range(200)]
+    assert all(len(ids) in (1, 2) and ids[0] in ALONG_TRACK_EFFECT_IDS for ids in draws)
+    assert all(ids[1] in RANDOM_EFFECT_IDS for ids in draws if len(ids) == 2)
+    assert {ids[0] for ids in draws} == set(ALONG_TRACK_EFFECT_IDS)
+    assert 70 <= sum(len(ids) == 2 for ids in draws) <= 130  # one beside it in half the sets
+    # Naming the default library draws what no library drew before.
+    plain, named = np.random.default_rng(9), np.random.default_rng(9)
+    assert [random_requests(plain) for _ in range(50)] == [random_requests(named, "default") for _ in range(50)]
+    with pytest.raises(ValueError, match="'on_the_line'.*default, along_track"):
+        random_requests(rng, "on_the_line")
+
+
+def test_synth_records_the_library_its_effects_were_drawn_from(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        key = synthesize(tmp_path / "set", 2, seed=3, random_effects=True, random_library="along_track").key
+    assert key["random_library"] == "along_track"
+    assert key["effects"][0]["id"] in ALONG_TRACK_EFFECT_IDS
+    with pytest.raises(ValueError, match="'along_track' given without random effects"):
+        synthesize(tmp_path / "other", 2, seed=3, random_library="along_track")
 
 
 def _synth(tmp_path_factory, name: str, effects, n: int, seed: int) -> Path:

@@ -77,6 +77,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
         args.seed,
         effects=requests,
         random_effects=args.random_effects,
+        random_library=args.random_library,
         base_offset=args.base_offset,
         key_path=args.key,
         noise_scale=args.noise_scale,
@@ -114,6 +115,14 @@ def _add_synth_command(sub: argparse._SubParsersAction) -> None:
         help="switch an effect on (at most two), e.g. gradient:gradient_permil=-5.8; parameters not given are drawn",
     )
     p.add_argument("--random-effects", action="store_true", help="zero, one or two effects drawn from the library")
+    p.add_argument(
+        "--random-library",
+        default="default",
+        metavar="NAME",
+        help="what --random-effects draws from: default, the ten effects of brakegym 0.2 (zero, one or two); "
+        "along_track, one effect located along the line (a gradient section, a profile of two, a stretch of "
+        "low adhesion) and in half the sets one of the ten beside it",
+    )
     p.add_argument("--base-offset", action="store_true", help="move the base model within its scatter (not an effect)")
     p.add_argument(
         "--noise-scale",

@@ -190,12 +190,31 @@ RANDOM_EFFECT_IDS = (
 )
 
 
-def random_requests(rng: np.random.Generator) -> list[EffectRequest]:
-    """Zero, one or two effects of ``RANDOM_EFFECT_IDS``, equally likely counts, distinct ids."""
-    count = int(rng.integers(MAX_EFFECTS + 1))
-    ids = list(RANDOM_EFFECT_IDS)
-    chosen = rng.choice(len(ids), size=count, replace=False)
-    return [EffectRequest(ids[int(i)]) for i in sorted(chosen)]
+#: the effects that live along the line: ``--random-library along_track`` puts one in every set
+ALONG_TRACK_EFFECT_IDS = ("gradient_section", "adhesion_section", "gradient_sections")
+
+#: what ``--random-effects`` draws from (:func:`random_requests`)
+RANDOM_LIBRARIES = ("default", "along_track")
+
+
+def random_requests(rng: np.random.Generator, library: str = "default") -> list[EffectRequest]:
+    """The effects of a random set, drawn from ``library``:
+
+    - ``default``: zero, one or two effects of ``RANDOM_EFFECT_IDS``, equally likely counts,
+      distinct ids;
+    - ``along_track``: one effect of ``ALONG_TRACK_EFFECT_IDS``, and in half the sets one of
+      ``RANDOM_EFFECT_IDS`` beside it, for a benchmark of the effects located along position."""
+    if library == "default":
+        count = int(rng.integers(MAX_EFFECTS + 1))
+        ids = list(RANDOM_EFFECT_IDS)
+        chosen = rng.choice(len(ids), size=count, replace=False)
+        return [EffectRequest(ids[int(i)]) for i in sorted(chosen)]
+    if library == "along_track":
+        requests = [EffectRequest(ALONG_TRACK_EFFECT_IDS[int(rng.integers(len(ALONG_TRACK_EFFECT_IDS)))])]
+        if rng.random() < 0.5:
+            requests.append(EffectRequest(RANDOM_EFFECT_IDS[int(rng.integers(len(RANDOM_EFFECT_IDS)))]))
+        return requests
+    raise ValueError(f"random library {library!r}: choose one of {', '.join(RANDOM_LIBRARIES)}")
 
 
 @dataclass
@@ -327,6 +346,7 @@ def synthesize(
     base_offset: bool = False,
     key_path: str | Path | None = None,
     noise_scale: float = 1.0,
+    random_library: str = "default",
     scatter_setup: str = SCATTER_SETUP,
     measurement_chain: MeasurementChain | None = None,
     model_form: ModelForm | None = None,
@@ -338,6 +358,7 @@ def synthesize(
     """Write a synthetic set of ``n_recordings`` into ``out_dir`` and its key to ``key_path``
     (default :func:`default_key_path`).
 
+    ``random_library``: what ``random_effects`` draws from (:func:`random_requests`).
     ``noise_scale`` multiplies every sensor noise level (0: noise-free, for checking a replay;
     larger for robustness); ``scatter_setup`` names the friction scatter set-up (``ds``: none,
     and no running-resistance scatter either); ``measurement_chain`` logs each channel through
@@ -357,7 +378,7 @@ def synthesize(
     (``line_direction``); a run back begins ``RUN_BACK_OFFSET_M`` further along the line."""
     out_dir = Path(out_dir)
     key_path = Path(key_path) if key_path is not None else default_key_path(out_dir)
-    _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale)
+    _check_request(out_dir, key_path, n_recordings, effects, random_effects, noise_scale, random_library)
     if not (math.isfinite(line_spread_m) and line_spread_m >= 0):
         raise ValueError(f"line spread {line_spread_m} m: must be a non-negative finite number")
     if both_directions and not line_spread_m > 0:
@@ -366,7 +387,14 @@ def synthesize(
             "(line_spread_m, --line-spread-m): give one"
         )
     drawn = _draw_set(
-        n_recordings, seed, effects, random_effects, base_offset, scatter_setup, measurement_chain, model_form
+        n_recordings,
+        seed,
+        effects,
+        random_library if random_effects else None,
+        base_offset,
+        scatter_setup,
+        measurement_chain,
+        model_form,
     )
     if line_spread_m > 0:
         drawn.applications = _placed_on_the_line(drawn.applications, seed, line_spread_m, both_directions)
@@ -423,8 +451,13 @@ def _check_request(
     effects: Sequence[EffectRequest],
     random_effects: bool,
     noise_scale: float,
+    random_library: str = "default",
 ) -> None:
     """Refuse a set that cannot be written as asked."""
+    if random_library not in RANDOM_LIBRARIES:
+        raise ValueError(f"random library {random_library!r}: choose one of {', '.join(RANDOM_LIBRARIES)}")
+    if random_library != "default" and not random_effects:
+        raise ValueError(f"random library {random_library!r} given without random effects, which are drawn from it")
     if not (math.isfinite(noise_scale) and noise_scale >= 0):
         raise ValueError(f"noise scale {noise_scale}: must be a non-negative finite number")
     if n_recordings < 1:
@@ -463,6 +496,7 @@ class _DrawnSet:
     model_form: DrawnModelForm | None = None
     gradient_profile: GradientProfile | None = None  # the line every application runs on
     gradient_profile_declared: bool = True  # in each recording's metadata, or in the key alone
+    random_library: str | None = None  # what the effects were drawn from (None: given)
 
     @property
     def declared_gradient_profile(self) -> GradientProfile | None:
@@ -478,14 +512,15 @@ def _draw_set(
     n: int,
     seed: int,
     effects: Sequence[EffectRequest],
-    random_effects: bool,
+    random_library: str | None,
     base_offset: bool,
     scatter_setup: str,
     chain: MeasurementChain | None = None,
     form: ModelForm | None = None,
 ) -> _DrawnSet:
     """The draws of a set from its seed, through independent streams (campaign, scatter, effects,
-    base offset, noise, model form: a child's stream does not depend on how many are spawned)."""
+    base offset, noise, model form: a child's stream does not depend on how many are spawned).
+    ``random_library``: the library random effects are drawn from (None: ``effects``)."""
     streams = np.random.SeedSequence(seed).spawn(6)
     campaign_seed, scatter_seed, effect_seed, offset_seed, noise_seed, form_seed = streams
     campaign_rng, scatter_rng, effect_rng, offset_rng = (
@@ -495,7 +530,7 @@ def _draw_set(
     material = cfg.load("materials", vehicle.material)
     setup = cfg.load("setups", scatter_setup)
     plant = train_plant(vehicle)
-    requests = random_requests(effect_rng) if random_effects else list(effects)
+    requests = random_requests(effect_rng, random_library) if random_library is not None else list(effects)
     chosen, effect_entries = resolve_effects(requests, effect_rng)
     applications = draw_applications(
         campaign_rng, vehicle, n, COASTING_RANGE_S if chain is None else chain.coasting_range_s
@@ -555,6 +590,7 @@ def _draw_set(
         model_form=None
         if form is None
         else draw_model_form(form, np.random.default_rng(form_seed), [a.brake_mode for a in applications]),
+        random_library=random_library,
     )
 
 
@@ -598,6 +634,7 @@ def _answer_key(drawn: _DrawnSet, seed: int, noise_scale: float, truth_rows: lis
         "recordings": len(drawn.applications),
         "vehicle": VEHICLE,
         "effects": drawn.effect_entries,
+        "random_library": drawn.random_library,
         "expected_selected": [entry["id"] for entry in drawn.effect_entries if entry["imprint"]["expressed"]],
         "base_offset": offset,
         "base_offset_note": None
