@@ -96,3 +96,34 @@ def test_a_pair_holds_the_pair_with_the_effect_its_member_extends():
     assert nested_candidates(candidate("gradient", "gradient_section"), others) == []
     profile = candidate("gradient_sections", "running_resistance")
     assert nested_candidates(profile, others) == [with_section]
+
+
+def test_a_look_alike_of_the_single_is_fitted_beside_the_pairs_second_effect(tmp_path):
+    # Three failed brake units of sixteen take 18.75 % of the brake force, a rotating mass of 0.23
+    # as much of the deceleration. Alone, the rotating mass fits better (it also takes up some of
+    # the unfitted profile) and the forward step pairs the profile with it; the failed units,
+    # fitted in its place beside the profile, fit better by every rule.
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=1016164991,
+        effects=[
+            EffectRequest(
+                "gradient_sections",
+                {
+                    "first_section_start_m": 254.8,
+                    "first_section_length_m": 337.5,
+                    "first_section_gradient_permil": -5.154,
+                    "second_section_start_m": 816.3,
+                    "second_section_length_m": 315.0,
+                    "second_section_gradient_permil": 4.686,
+                },
+            ),
+            EffectRequest("brake_unit_failure", {"failed_units": 3}),
+        ],
+    )
+    report = diagnose(result.folder).report
+    assert report["selected"] == ["brake_unit_failure", "gradient_sections"], report["summary"]
+    assert report["parameters"]["failed_units"] == 3
+    fitted = [candidate["effects"] for candidate in report["candidates"]]
+    assert ["rotating_mass", "gradient_sections"] in fitted

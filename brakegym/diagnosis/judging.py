@@ -27,7 +27,11 @@ effect that holds another as a special case (:attr:`brakegym.effects.base.Effect
 holds the whole-line gradient, a profile of two sections one section) must beat it by the same
 rules where both are fitted, as a single and in a pair with the same partner. The pairs
 include those of the forward step (:mod:`.pipeline`): the selected single with the effects that
-screen best on top of it. A pair that does not replace the single, but whose second effect is
+screen best on top of it. Where a pair is selected, the next passing singles are fitted in its
+single's place beside its second effect; such a swapped pair replaces the selected one where it
+beats it by every rule, and is named indistinguishable from it by the rule for two singles below
+(three failed brake units and a rotating mass of 0.23 take the same share of the brake force).
+A pair that does not replace the single, but whose second effect is
 relevant, whose held-out error is within ``indistinguishable_heldout`` of the single's or lower,
 and that passes one of the two rules against the single (a BIC lower by ``select_delta_bic``, or
 the held-out rule) is named indistinguishable from the single (``single_or_pair``), with the
@@ -285,13 +289,15 @@ class Judge:
         description wins on held-out error alone where the two fit equally well: a section
         spanning nearly all of the recordings beside a whole-line gradient, chosen by rounding in
         the step search."""
-        for nested in nested_candidates(candidate, others):
-            if not (
-                self.beats(candidate, nested.delta_bic, nested.heldout.sse, nested.heldout.residual, nested.effect_ids)
-                and float(np.sum(candidate.heldout.sse)) < float(np.sum(nested.heldout.sse))
-            ):
-                return False
-        return True
+        return all(self.replaces(candidate, nested) for nested in nested_candidates(candidate, others))
+
+    def replaces(self, candidate: Candidate, reference: Candidate) -> bool:
+        """Whether ``candidate`` beats ``reference`` by every rule (:meth:`beats`) and has the
+        lower held-out error, as a pair must to replace its single; records its held-out figures
+        against the reference in its report."""
+        return self.beats(
+            candidate, reference.delta_bic, reference.heldout.sse, reference.heldout.residual, reference.effect_ids
+        ) and float(np.sum(candidate.heldout.sse)) < float(np.sum(reference.heldout.sse))
 
     def verdict(self, singles: Sequence[Candidate], pairs: Sequence[Candidate]) -> Verdict:
         """Select among ``singles`` and ``pairs`` (see the module documentation)."""
@@ -303,12 +309,7 @@ class Judge:
             # Every pair with the single is judged against the single itself, not against a pair
             # that replaced it earlier in the loop.
             with_single = [pair for pair in pairs if single.effect_ids[0] in pair.effect_ids]
-            better = [
-                pair
-                for pair in with_single
-                if self.beats(pair, single.delta_bic, single.heldout.sse, single.heldout.residual, single.effect_ids)
-                and float(np.sum(pair.heldout.sse)) < float(np.sum(single.heldout.sse))
-            ]
+            better = [pair for pair in with_single if self.replaces(pair, single)]
             # A pair that holds another passing pair as a special case must beat that one too.
             better = [pair for pair in better if self._beats_nested(pair, better)]
             if better:
@@ -336,31 +337,60 @@ class Judge:
             and (pair.passes_bic_rule or pair.passes_heldout_rule)
         )
 
+    def with_swapped_pairs(self, verdict: Verdict, swapped: Sequence[Candidate]) -> Verdict:
+        """The verdict on a selected pair, given the pair with its single swapped for a look-alike
+        (``swapped``, fitted by :mod:`.pipeline` beside the pair's second effect): a swapped
+        pair that beats the selected one by every rule replaces it, and one that the data do not
+        tell from it is named indistinguishable, as two singles are."""
+        selected = verdict.selected
+        if selected is None or len(selected.effect_ids) != 2 or not swapped:
+            return verdict
+        better = [pair for pair in swapped if self.replaces(pair, selected)]
+        if better:
+            selected = min(better, key=lambda c: float(np.sum(c.heldout.sse)))
+        indistinguishable, correlations = list(verdict.indistinguishable), dict(verdict.signature_correlations)
+        for other in [verdict.selected, *swapped]:
+            if other is selected or not self._alike(selected, other):
+                continue
+            shared = set(selected.effect_ids) & set(other.effect_ids)
+            (first,) = [e for e in selected.effect_ids if e not in shared]
+            (second,) = [e for e in other.effect_ids if e not in shared]
+            indistinguishable.append([first, second])
+            correlations[f"{first} / {second}"] = self._signature_correlation(selected, other)
+        return dataclasses.replace(
+            verdict, selected=selected, indistinguishable=indistinguishable, signature_correlations=correlations
+        )
+
+    def _alike(self, selected: Candidate, other: Candidate) -> bool:
+        """Whether the data do not tell ``other`` from ``selected``: a held-out error within
+        ``indistinguishable_heldout`` of the selected one's or lower, and either a BIC within
+        ``similar_bic`` or paired held-out differences that fail the held-out rule."""
+        rules = self.rules
+        best_sse = float(np.sum(selected.heldout.sse))
+        close = float(np.sum(other.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * best_sse
+        similar_bic = abs(other.delta_bic - selected.delta_bic) < rules.similar_bic
+        difference = (other.heldout.sse - selected.heldout.sse) / np.maximum(self.base_sse, 1e-12)
+        tells_apart = self._consistent(paired_t(difference), paired_t_p_value(difference))
+        return close and (similar_bic or not tells_apart)
+
+    def _signature_correlation(self, selected: Candidate, other: Candidate) -> float:
+        """How alike the two candidates' corrections to the unmodified model are."""
+        return round(
+            self.weighting.signature_correlation(self.baseline.residual, selected.fit.residual, other.fit.residual), 3
+        )
+
     def _indistinguishable(
         self, selected: Candidate | None, passing: Sequence[Candidate]
     ) -> tuple[list[list[str]], dict[str, float]]:
-        rules = self.rules
         pairs: list[list[str]] = []
         correlations: dict[str, float] = {}
         if selected is None or len(selected.effect_ids) != 1:
             return pairs, correlations
-        best_sse = float(np.sum(selected.heldout.sse))
         for other in passing:
-            if other is selected:
-                continue
-            close = float(np.sum(other.heldout.sse)) <= (1.0 + rules.indistinguishable_heldout) * best_sse
-            similar_bic = abs(other.delta_bic - selected.delta_bic) < rules.similar_bic
-            difference = (other.heldout.sse - selected.heldout.sse) / np.maximum(self.base_sse, 1e-12)
-            tells_apart = self._consistent(paired_t(difference), paired_t_p_value(difference))
-            if close and (similar_bic or not tells_apart):
+            if other is not selected and self._alike(selected, other):
                 first, second = selected.effect_ids[0], other.effect_ids[0]
                 pairs.append([first, second])
-                correlations[f"{first} / {second}"] = round(
-                    self.weighting.signature_correlation(
-                        self.baseline.residual, selected.fit.residual, other.fit.residual
-                    ),
-                    3,
-                )
+                correlations[f"{first} / {second}"] = self._signature_correlation(selected, other)
         return pairs, correlations
 
     def _unconfirmed(self, selected: Candidate | None, singles: Sequence[Candidate]) -> list[Candidate]:

@@ -286,6 +286,10 @@ class Diagnoser:
             forward_pairs, forward = self._forward_pairs(single, pairs, judge, evidence)
             pairs += forward_pairs
         verdict = judge.verdict(singles, pairs)
+        if single is not None and verdict.selected is not None and len(verdict.selected.effect_ids) == 2:
+            swapped = self._swapped_pairs(single, verdict.selected, singles, pairs, judge)
+            pairs += swapped
+            verdict = judge.with_swapped_pairs(verdict, swapped)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
         entries = candidate_entries(problem, weighting, baseline, singles + pairs)
         if verdict.selected is not None:
@@ -448,6 +452,42 @@ class Diagnoser:
             fit = min(fits, key=lambda f: judge.weighting.chi2(f.residual))
             new_pairs.append(judge.candidate(ids, fit))
         return new_pairs, screened
+
+    def _swapped_pairs(
+        self,
+        single: Candidate,
+        pair: Candidate,
+        singles: Sequence[Candidate],
+        pairs: Sequence[Candidate],
+        judge: Judge,
+    ) -> list[Candidate]:
+        """The selected ``pair`` with its ``single`` swapped for each of the next passing singles
+        (``swapped_pairs`` of them, lowest held-out error first), fitted from that single's
+        parameters and nuisance and the pair's second effect's parameters. The forward step
+        fits pairs with the selected single only; a look-alike of it (the same loss of brake force
+        as failed units or as a rotating mass) would otherwise never meet the pair's second effect.
+        Pairs already fitted, and those of an effect with the one it extends, are left out."""
+        problem, rules = self.problem, self.rules
+        (second_id,) = [e for e in pair.effect_ids if e not in single.effect_ids]
+        fitted = {frozenset(c.effect_ids) for c in pairs}
+        others = sorted(
+            (c for c in singles if c.passes and c is not single and c.effect_ids[0] != second_id),
+            key=lambda c: float(np.sum(c.heldout.sse)),
+        )
+        swapped = []
+        for other in others[: rules.swapped_pairs]:
+            (other_id,) = other.effect_ids
+            ids = in_library_order((other_id, second_id))
+            related = EFFECTS[other_id].extends == second_id or EFFECTS[second_id].extends == other_id
+            if frozenset(ids) in fitted or related:
+                continue
+            held = {**other.fit.fixed, **{k: v for k, v in pair.fit.fixed.items() if k not in single.fit.fixed}}
+            values = {**pair.fit.parameters, **other.fit.parameters}
+            free = problem.free_parameters(list(ids), held)
+            start = np.concatenate([[values[parameter.name] for parameter in free], other.fit.x[len(other.fit.free) :]])
+            fit = problem.fit(list(ids), start, fixed=held, max_iterations=rules.fit_iterations)
+            swapped.append(judge.candidate(ids, fit))
+        return swapped
 
     def _fallback_screening(
         self, weighting: Weighting, baseline: FitResult, singles: Sequence[Candidate], judge: Judge

@@ -114,6 +114,11 @@ class DiagnosisRules:
     #: in the forward step, this many effects, those that screen best on top of the selected
     #: single, are fitted as pairs with it (0 turns the forward step off)
     forward_pairs: int = 2
+    #: where a pair is selected, the passing singles after its single (lowest held-out error
+    #: first, at most this many) are each fitted in the single's place beside the pair's second
+    #: effect: a look-alike of the single (three failed brake units and a rotating mass of 0.23)
+    #: is then replaced or named indistinguishable as it would be alone (0 turns this off)
+    swapped_pairs: int = 2
     #: iterations of a candidate's full fit
     fit_iterations: int = 8
     #: a single's full fit starts from the best points of this many valleys (local minima) of
