@@ -66,7 +66,7 @@ EFFECTS: dict[str, type[Effect]] = {
 
 
 def in_library_order(effect_ids: Iterable[str]) -> tuple[str, ...]:
-    """``effect_ids`` in the order of :data:`EFFECTS`: the one spelling of a combination of
+    """``effect_ids`` in the order of ``EFFECTS``: the one spelling of a combination of
     effects, so that a pair fitted in either order is one key."""
     order = list(EFFECTS)
     return tuple(sorted(effect_ids, key=order.index))

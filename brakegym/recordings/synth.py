@@ -190,7 +190,7 @@ RANDOM_EFFECT_IDS = (
 )
 
 
-#: the effects that live along the line: ``--random-library along_track`` puts one in every set
+#: the effects that live along the line, one of which ``--random-library along_track`` puts in every set
 ALONG_TRACK_EFFECT_IDS = ("gradient_section", "adhesion_section", "gradient_sections")
 
 #: what ``--random-effects`` draws from (:func:`random_requests`)
