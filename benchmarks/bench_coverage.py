@@ -18,7 +18,10 @@ fleet's stops do.
 
 Printed per effect and parameter: the sets, how many intervals hold the truth (the reported
 ``ci95``, and its two parts), with the Clopper-Pearson 95 % interval of that rate, and the median
-relative error; per effect, the sets where every parameter's interval holds it.
+relative error; per effect, the sets where every parameter's interval holds it. An interval that
+spans its parameter's whole search range (the report's ``not_bounded_by_data``) holds any truth:
+such intervals are counted apart (``spans range``), and a set with one is not counted as covered
+for its effect ("every interval holds the truth" asks that the data bound them).
 
 Usage: ``python benchmarks/bench_coverage.py --sets-per-effect 4 --seed 1 --json cov1.json``.
 Runs with different seeds can go on side by side (one per core) and be summarized together:
@@ -41,6 +44,8 @@ import numpy as np
 from scipy import stats
 
 from brakegym.diagnosis import Diagnoser
+from brakegym.diagnosis.judging import not_bounded_by_data
+from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import EFFECTS
 from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, synthesize
@@ -48,6 +53,8 @@ from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, synthesi
 DEFAULT_RECORDINGS = 8
 # The interval kinds a row keeps: the reported one and its two parts.
 INTERVALS = ("ci95", "ci95_gauss_newton_jackknife", "ci95_bootstrap")
+# Within this share of the range at both ends, an interval spans the search range (the diagnosis's).
+RANGE_END_SHARE = DiagnosisRules().range_end_share
 
 
 def set_seed(seed: int, index: int, effect_index: int) -> int:
@@ -102,9 +109,11 @@ def clopper_pearson(hits: int, n: int) -> tuple[float, float]:
 def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Per effect and parameter: sets, intervals holding the truth (each kind), median error."""
     per_parameter: dict[str, dict[str, Any]] = defaultdict(
-        lambda: {"sets": 0, "errors": [], **{k: 0 for k in INTERVALS}}
+        lambda: {"sets": 0, "errors": [], "spans_range": 0, **{k: 0 for k in INTERVALS}}
     )
-    per_effect: dict[str, dict[str, int]] = defaultdict(lambda: {"sets": 0, "all_covered": 0, "not_expressed": 0})
+    per_effect: dict[str, dict[str, int]] = defaultdict(
+        lambda: {"sets": 0, "all_covered": 0, "spanning_range": 0, "not_expressed": 0}
+    )
     for row in rows:
         effect = per_effect[row["effect"]]
         if not row["expressed"]:
@@ -112,22 +121,28 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
             continue
         effect["sets"] += 1
         reported = row["ci95"]
+        unbounded = not_bounded_by_data([row["effect"]], reported, RANGE_END_SHARE)
         for name, truth in row["truth"].items():
             if name not in reported:  # an integer parameter, held at the truth
                 continue
             entry = per_parameter[f"{row['effect']}.{name}"]
             entry["sets"] += 1
             entry["errors"].append(abs(row["fitted"][name] - truth) / max(abs(truth), 1e-9))
+            entry["spans_range"] += name in unbounded
             for kind in INTERVALS:
                 low, high = row[kind].get(name, (np.nan, np.nan))
                 entry[kind] += bool(low <= truth <= high)
-        effect["all_covered"] += all(low <= row["truth"][name] <= high for name, (low, high) in reported.items())
+        effect["spanning_range"] += bool(unbounded)
+        effect["all_covered"] += not unbounded and all(
+            low <= row["truth"][name] <= high for name, (low, high) in reported.items()
+        )
     parameters = {}
     for name, entry in sorted(per_parameter.items()):
         n = entry["sets"]
         parameters[name] = {
             "sets": n,
             **{f"covered_{kind}": entry[kind] for kind in INTERVALS},
+            "spans_search_range": entry["spans_range"],
             "coverage_ci95_clopper_pearson": [round(v, 3) for v in clopper_pearson(entry["ci95"], n)],
             "median_relative_error": float(np.median(entry["errors"])),
         }
@@ -137,7 +152,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def print_summary(summary: dict[str, Any]) -> None:
     print(
         f"{'parameter':40s} {'sets':>4s} {'ci95':>9s} {'its 95 % CI':>13s} {'GN/jackknife':>12s} "
-        f"{'bootstrap':>9s} {'median error':>12s}"
+        f"{'bootstrap':>9s} {'spans range':>11s} {'median error':>12s}"
     )
     for name, entry in summary["parameters"].items():
         n = entry["sets"]
@@ -145,14 +160,16 @@ def print_summary(summary: dict[str, Any]) -> None:
         print(
             f"{name:40s} {n:4d} {entry['covered_ci95']:4d}/{n:<4d} {100 * low:5.0f}-{100 * high:3.0f} % "
             f"{entry['covered_ci95_gauss_newton_jackknife']:7d}/{n:<4d} {entry['covered_ci95_bootstrap']:4d}/{n:<4d} "
-            f"{100 * entry['median_relative_error']:11.1f} %"
+            f"{entry['spans_search_range']:6d}/{n:<4d} {100 * entry['median_relative_error']:11.1f} %"
         )
     total = sum(e["sets"] for e in summary["effects"].values())
     covered = sum(e["all_covered"] for e in summary["effects"].values())
-    print("\nper effect, sets where every parameter's ci95 holds the truth:")
+    print("\nper effect, sets where every parameter's ci95 holds the truth and none spans its search range:")
     for effect, entry in summary["effects"].items():
-        skipped = f" ({entry['not_expressed']} not expressed)" if entry["not_expressed"] else ""
-        print(f"  {effect:26s} {entry['all_covered']:3d}/{entry['sets']:<3d}{skipped}")
+        notes = [f"{entry['spanning_range']} with an interval over the search range"] if entry["spanning_range"] else []
+        notes += [f"{entry['not_expressed']} not expressed"] if entry["not_expressed"] else []
+        shown = f" ({'; '.join(notes)})" if notes else ""
+        print(f"  {effect:26s} {entry['all_covered']:3d}/{entry['sets']:<3d}{shown}")
     print(f"  {'all':26s} {covered:3d}/{total:<3d}")
 
 

@@ -49,9 +49,38 @@ def test_coverage_is_counted_per_parameter_and_interval_kind(bench):
     assert onset["sets"] == 2 and onset["covered_ci95"] == 2 and onset["covered_ci95_bootstrap"] == 0
     assert loss["covered_ci95"] == 1 and loss["covered_ci95_bootstrap"] == 1
     assert loss["median_relative_error"] == pytest.approx(0.1)
-    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "not_expressed": 1}
+    assert onset["spans_search_range"] == 0 and loss["spans_search_range"] == 0
+    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "spanning_range": 0, "not_expressed": 1}
     assert "brake_unit_failure.failed_units" not in summary["parameters"]
-    assert summary["effects"]["brake_unit_failure"] == {"sets": 1, "all_covered": 1, "not_expressed": 0}
+    assert summary["effects"]["brake_unit_failure"] == {
+        "sets": 1,
+        "all_covered": 1,
+        "spanning_range": 0,
+        "not_expressed": 0,
+    }
+
+
+def test_an_interval_over_the_whole_search_range_is_counted_apart_and_not_as_covered(bench):
+    """Such an interval holds any truth: it is counted per parameter, and its set is not one where
+    every interval holds the truth (a fade's onset bounds are 80-600 degC, its loss 0-0.6)."""
+    rows = [
+        row(
+            "thermal_fade",
+            {"onset_C": 246.5, "loss_per_100K": 0.3},
+            {"onset_C": 252.3, "loss_per_100K": 0.28},
+            {"onset_C": [80.0, 600.0], "loss_per_100K": [0.0, 0.6]},
+        ),
+        row(
+            "thermal_fade",
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": [190.0, 210.0], "loss_per_100K": [0.05, 0.15]},
+        ),
+    ]
+    summary = bench.summarize(rows)
+    onset = summary["parameters"]["thermal_fade.onset_C"]
+    assert onset["covered_ci95"] == 2 and onset["spans_search_range"] == 1
+    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "spanning_range": 1, "not_expressed": 0}
 
 
 def test_the_exact_binomial_interval_of_a_coverage(bench):

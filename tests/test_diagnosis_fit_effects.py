@@ -5,9 +5,11 @@ The thresholds were fixed before the test first ran: started from its screening 
 true gradient, the fit lands within 15 % of it, and the reported interval holds it and both intervals it is made of.
 """
 
+import numpy as np
 import pytest
 
-from brakegym.diagnosis import Diagnoser
+from brakegym.diagnosis import Diagnoser, DiagnosisRules
+from brakegym.effects import GradientSection
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -38,6 +40,7 @@ def test_a_named_gradient_is_fitted_with_the_intervals_of_a_selected_model(diagn
         assert low <= part_low and part_high <= high, (part, report[part], report["ci95"])
     assert report["bootstrap_replicates"] == diagnoser.rules.bootstrap_replicates
     assert report["rms_after"]["speed_mps"] < report["rms_before"]["speed_mps"]
+    assert report["not_bounded_by_data"] == []  # the interval holds the gradient to a few permil
 
 
 def test_an_unknown_effect_is_refused_by_name(diagnoser):
@@ -59,3 +62,18 @@ def test_an_integer_parameter_is_held_where_it_is_given(diagnoser):
     candidate = diagnoser.fit_effects(["brake_unit_failure"], fixed={"failed_units": 3.0})
     assert candidate.report["parameters"] == {"failed_units": 3.0}
     assert candidate.report["ci95"] == {"failed_units": [3.0, 3.0]}
+
+
+def test_a_screening_point_beyond_the_bounds_is_screened_at_the_bound(diagnoser, monkeypatch):
+    """A step along position can read steeper than any section the library allows (a -45 permil
+    step on a train-like set of the blind benchmark, seed 1055700636, stopped the diagnosis with
+    an out-of-bounds error). The screening starts such a point at the bound instead, and the fit
+    stays inside the bounds."""
+    specs = GradientSection.parameters
+    steep = np.array([100.0, 400.0, -60.0])
+    np.testing.assert_array_equal(GradientSection.inside_bounds(steep), [100.0, 400.0, specs[2].lower])
+    monkeypatch.setattr(GradientSection, "screening_points", classmethod(lambda cls, evidence: [steep]))
+    quick = Diagnoser(diagnoser.recordings, rules=DiagnosisRules(bootstrap_replicates=2, fit_iterations=2))
+    parameters = quick.fit_effects(["gradient_section"]).report["parameters"]
+    for spec in specs:
+        assert spec.lower <= parameters[spec.name] <= spec.upper, (spec.name, parameters)

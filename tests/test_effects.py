@@ -9,6 +9,7 @@ import pytest
 import yaml
 
 from brakegym import config as cfg
+from brakegym.diagnosis.judging import not_bounded_by_data
 from brakegym.effects import EFFECTS, apply_effects, load_effects, make_effect
 from brakegym.plants import train_plant
 from brakegym.recordings.measurement import MeasurementModel
@@ -314,3 +315,24 @@ def test_a_fit_at_a_search_bound_is_told_from_one_at_a_physical_bound():
         ("gradient_sections", "first_section_start_m", "lower"),
         ("gradient_sections", "second_section_start_m", "lower"),
     }
+
+
+def test_an_interval_over_the_whole_search_range_is_not_bounded_by_the_data():
+    """An interval that reaches both ends of a parameter's range, physical or not, holds any truth:
+    the report names such parameters (``not_bounded_by_data``). A log-grid parameter is judged
+    along its logarithm, as at its range's end."""
+    share = 0.005
+    section = EFFECTS["gradient_section"]
+    assert section.spec("section_start_m").spans_range(0.0, 2499.0, share)  # from a physical bound
+    assert not section.spec("section_start_m").spans_range(0.0, 2400.0, share)
+    assert not section.spec("section_gradient_permil").spans_range(-39.0, 40.0, share)
+    drying = EFFECTS["wet_pads"].spec("drying_energy_MJ")
+    assert drying.spans_range(0.0502, 9.9, share) and not drying.spans_range(0.06, 10.0, share)
+    ci95 = {
+        "section_start_m": [0.0, 2500.0],
+        "section_length_m": [100.0, 300.0],
+        "section_gradient_permil": [-40.0, 40.0],
+    }
+    assert not_bounded_by_data(["gradient_section"], ci95, share) == ["section_start_m", "section_gradient_permil"]
+    # An integer parameter held at its value is bounded by being held.
+    assert not_bounded_by_data(["brake_unit_failure"], {"failed_units": [0.0, 8.0]}, share) == []

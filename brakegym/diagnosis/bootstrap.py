@@ -54,7 +54,7 @@ from ..plants import train_scatter
 from ..recordings.columns import DECEL
 from ..recordings.logger import ar1_noise
 from .fitting import FitProblem, FitResult, Samples
-from .judging import Candidate
+from .judging import Candidate, not_bounded_by_data
 from .noise import ChannelNoise
 from .rules import DiagnosisRules
 
@@ -234,4 +234,5 @@ def add_bootstrap_intervals(
         n: round(float(v), 6) for n, v in zip(result.names, result.estimates.std(axis=0, ddof=1))
     }
     report["ci95"] = merged_intervals(report["ci95_gauss_newton_jackknife"], result.ci95)
+    report["not_bounded_by_data"] = not_bounded_by_data(selected.effect_ids, report["ci95"], rules.range_end_share)
     return result

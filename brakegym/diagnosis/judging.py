@@ -62,7 +62,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -422,3 +422,15 @@ def nested_candidates(candidate: Candidate, others: Sequence[Candidate]) -> list
         if ids in by_ids:
             nested.append(by_ids[ids])
     return nested
+
+
+def not_bounded_by_data(effect_ids: Sequence[str], ci95: Mapping[str, Sequence[float]], share: float) -> list[str]:
+    """The parameters of ``effect_ids`` whose interval in ``ci95`` spans their search range (within
+    ``share`` of it at both ends, :meth:`brakegym.effects.ParameterSpec.spans_range`): the data
+    do not bound them, and such an interval holds any truth."""
+    return [
+        spec.name
+        for effect_id in effect_ids
+        for spec in EFFECTS[effect_id].parameters
+        if not spec.integer and spec.name in ci95 and spec.spans_range(*ci95[spec.name], share)
+    ]

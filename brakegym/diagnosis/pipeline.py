@@ -228,7 +228,7 @@ class Diagnoser:
         x0 = np.concatenate([[start[parameter.name] for parameter in free], nuisance])
         fit = problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations)
         candidate = Judge(problem, weighting, rules, evidence, baseline).candidate(ids, fit)
-        candidate_entries(problem, weighting, baseline, [candidate])
+        candidate_entries(problem, weighting, baseline, [candidate], rules.range_end_share)
         add_bootstrap_intervals(problem, candidate, self.noise_models, rules, self.decel_bias_sigma)
         return candidate
 
@@ -291,7 +291,7 @@ class Diagnoser:
             pairs += swapped
             verdict = judge.with_swapped_pairs(verdict, swapped)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
-        entries = candidate_entries(problem, weighting, baseline, singles + pairs)
+        entries = candidate_entries(problem, weighting, baseline, singles + pairs, rules.range_end_share)
         if verdict.selected is not None:
             add_bootstrap_intervals(problem, verdict.selected, self.noise_models, rules, self.decel_bias_sigma)
         report = build_report(

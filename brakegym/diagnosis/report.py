@@ -26,7 +26,7 @@ from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.replay import compare
 from ..statistics import gauss_newton_covariance
 from .fitting import FitProblem, FitResult
-from .judging import Candidate, Verdict, mismatch_explained_share
+from .judging import Candidate, Verdict, mismatch_explained_share, not_bounded_by_data
 from .screening import ScreenedPoint
 from .weighting import CHANNEL_NAMES, Weighting
 
@@ -72,20 +72,27 @@ def stop_errors(fit: FitResult) -> dict[str, float]:
 
 
 def candidate_entries(
-    problem: FitProblem, weighting: Weighting, baseline: FitResult, candidates: Sequence[Candidate]
+    problem: FitProblem,
+    weighting: Weighting,
+    baseline: FitResult,
+    candidates: Sequence[Candidate],
+    range_end_share: float,
 ) -> list[dict[str, Any]]:
-    """Every candidate's report entry, best BIC first."""
+    """Every candidate's report entry, best BIC first (``range_end_share``: see
+    :func:`.judging.not_bounded_by_data`)."""
     base_rms = weighting.rms(baseline.residual)
     base_stop = stop_errors(baseline)
     entries = []
     for candidate in sorted(candidates, key=lambda c: c.delta_bic):
         fit = candidate.fit
         share = mismatch_explained_share(weighting, baseline.residual, candidate.chi2_eff)
+        intervals = ci95(problem, weighting, fit, candidate.heldout.steps)
         candidate.report.update(
             {
                 "effects": list(candidate.effect_ids),
                 "parameters": {k: round(v, 5) for k, v in fit.parameters.items()},
-                "ci95": ci95(problem, weighting, fit, candidate.heldout.steps),
+                "ci95": intervals,
+                "not_bounded_by_data": not_bounded_by_data(candidate.effect_ids, intervals, range_end_share),
                 "rms_before": base_rms,
                 "rms_after": weighting.rms(fit.residual),
                 "heldout_rms_before": base_rms,
@@ -222,6 +229,12 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
             f"friction scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: "
             f"it lowers the held-out residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
         )
+        unbounded = selected.report.get("not_bounded_by_data") or []
+        if unbounded:
+            text += (
+                f" The data do not bound {', '.join(unbounded)}: the 95 % interval spans the search range, "
+                f"so the value is not measured."
+            )
         if report["indistinguishable"]:
             pairs = "; ".join(
                 f"{a} and {b} (their corrections to the model correlate "

@@ -205,7 +205,7 @@ class Screening:
                 if key in by_fixed and not theta.size:  # every whole value moved onto the held one
                     continue
                 by_fixed.setdefault(key, []).append(theta)
-            extra = EFFECTS[effect_id].screening_points(evidence)
+            extra = [EFFECTS[effect_id].inside_bounds(point) for point in EFFECTS[effect_id].screening_points(evidence)]
             if extra:
                 by_fixed.setdefault((), []).extend(extra)
             grid_points: list[ScreenedPoint] = []

@@ -72,9 +72,7 @@ class SignatureMatch:
         """The start moved onto the nearest bound where the signature gives one outside (a fit
         explores only inside the bounds); the report keeps both."""
         specs = {spec.name: spec for spec in EFFECTS[self.effect_id].parameters}
-        return {
-            name: float(min(max(value, specs[name].lower), specs[name].upper)) for name, value in self.start.items()
-        }
+        return {name: specs[name].inside_bounds(value) for name, value in self.start.items()}
 
 
 #: the phases of a stop whose samples the signatures are fitted on, coasting first (before the

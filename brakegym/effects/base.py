@@ -90,16 +90,31 @@ class ParameterSpec:
             raise ValueError(f"effect {effect_id!r}: parameter {self.name!r} = {value!r} must be a whole number")
         return array
 
+    def range_position(self, value: float) -> float:
+        """Where ``value`` lies in the bounds: 0 at the lower, 1 at the upper (along the logarithm
+        for a ``log_grid`` parameter)."""
+        if self.log_grid:
+            return math.log(value / self.lower) / math.log(self.upper / self.lower)
+        return (value - self.lower) / (self.upper - self.lower)
+
     def at_range_end(self, value: float, share: float) -> bool:
         """Whether ``value`` lies within ``share`` of the range (of its logarithm for a
         ``log_grid`` parameter) of a bound that is not physical."""
-        if self.log_grid:
-            position = math.log(value / self.lower) / math.log(self.upper / self.lower)
-        else:
-            position = (value - self.lower) / (self.upper - self.lower)
+        position = self.range_position(value)
         return (position <= share and not self.lower_is_physical) or (
             position >= 1.0 - share and not self.upper_is_physical
         )
+
+    def spans_range(self, low: float, high: float, share: float) -> bool:
+        """Whether an interval ``low``..``high`` reaches within ``share`` of the range of both
+        bounds, physical or not: the data do not bound the parameter, and such an interval holds
+        any truth."""
+        return self.range_position(low) <= share and self.range_position(high) >= 1.0 - share
+
+    def inside_bounds(self, value: float) -> float:
+        """``value``, or the nearer bound where it lies outside them: a fit's start (a fit explores
+        only inside the bounds)."""
+        return float(min(max(value, self.lower), self.upper))
 
     def grid(self, points: int) -> np.ndarray:
         """``points`` values across the bounds: the midpoints of equal parts (of geometric parts
@@ -345,8 +360,18 @@ class Effect:
     @classmethod
     def screening_points(cls, evidence: Evidence) -> list[np.ndarray]:
         """Parameter points (values of the non-integer parameters in order) the data point at,
-        screened beside the grid for an effect whose chi^2 valley is narrower than a grid step."""
+        screened beside the grid for an effect whose chi^2 valley is narrower than a grid step.
+        A point may lie outside the bounds (a step along position steeper than any section the
+        library allows); the screening puts it inside them (:meth:`inside_bounds`)."""
         return []
+
+    @classmethod
+    def inside_bounds(cls, point: np.ndarray) -> np.ndarray:
+        """``point`` (values of the non-integer parameters in order) with each value moved to the
+        nearer bound where it lies outside its parameter's bounds. A start, not a fit: a fit that
+        ends at the end of a search range is not named by the diagnosis."""
+        specs = [spec for spec in cls.parameters if not spec.integer]
+        return np.array([spec.inside_bounds(value) for spec, value in zip(specs, point, strict=True)])
 
     @classmethod
     def brake_force_share(cls, parameters: Mapping[str, float], n_discs: int) -> float:

@@ -145,11 +145,8 @@ class ThermalFade(Effect):
         """Onsets at shares of the peak measured disc temperature, each with three losses."""
         if not math.isfinite(evidence.peak_disc_C):
             return []
-        onset, loss = cls.parameters
-        onsets = [
-            float(np.clip(evidence.peak_disc_C * share, onset.lower, onset.upper)) for share in cls.ONSET_PEAK_SHARES
-        ]
-        return [np.array([o, lo]) for o in onsets for lo in loss.grid(3)]
+        onsets = [evidence.peak_disc_C * share for share in cls.ONSET_PEAK_SHARES]
+        return [np.array([onset, loss]) for onset in onsets for loss in cls.spec("loss_per_100K").grid(3)]
 
     @classmethod
     def no_effect_values(cls, vehicle: cfg.Vehicle | None = None) -> dict[str, float]:
@@ -191,9 +188,8 @@ class AdhesionLimit(Effect):
         leaves the emergency stops untouched, 0.01 too low stops every application short."""
         if not math.isfinite(evidence.peak_decel_mps2):
             return []
-        spec = cls.parameters[0]
         plateau = evidence.peak_decel_mps2 / STANDARD_GRAVITY_MPS2
-        return [np.array([float(np.clip(plateau * share, spec.lower, spec.upper))]) for share in cls.PLATEAU_SHARES]
+        return [np.array([plateau * share]) for share in cls.PLATEAU_SHARES]
 
     def apply(self, model: EffectedModel) -> None:
         model.friction_modifiers.append(_axle_cap(model, per_train(self["adhesion"], model.n_trains, "adhesion")))
@@ -253,7 +249,6 @@ class AdhesionSection(Effect):
         """Where the residual along position steps down: the stretch's ends half a train length
         inside the step's edges, the adhesion at shares of the plateau of the deceleration there.
         A step up (the train slows more on the stretch) is no loss of adhesion."""
-        spec = cls.spec("patch_adhesion")
         points = []
         for stretch in evidence.stretches:
             if stretch.decel_step_mps2 >= 0.0 or not math.isfinite(stretch.peak_decel_mps2):
@@ -261,7 +256,7 @@ class AdhesionSection(Effect):
             start, length = stretch.section(cls.TRAIN_LENGTH_M)
             plateau = stretch.peak_decel_mps2 / STANDARD_GRAVITY_MPS2
             for share in cls.PLATEAU_SHARES:
-                points.append(np.array([start, length, float(np.clip(plateau * share, spec.lower, spec.upper))]))
+                points.append(np.array([start, length, plateau * share]))
         return points
 
     def apply(self, model: EffectedModel) -> None:
