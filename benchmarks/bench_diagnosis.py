@@ -30,7 +30,9 @@ The summary adds, per method: pairs both ways (both named, at least one), the co
 the effects drawn against the verdict (with ``nothing`` and ``unexplained``), the false-naming
 rate (sets where an effect not drawn was selected, over all sets and per effect) and the coverage
 of the nominal 95 % intervals per parameter on the sets where exactly the effects drawn were
-selected; ``--summary-json`` writes those numbers.
+selected, and the sets whose selected model has a parameter the data do not bound (its interval
+spans the search range, the report's ``not_bounded_by_data``), with how many of those carry a
+false name; ``--summary-json`` writes those numbers.
 
 ``--measurement-chain NAME`` and ``--model-form NAME`` synthesize the sets as ``brakegym synth``
 does with those options, and ``--random-library along_track`` draws their effects as ``brakegym
@@ -61,7 +63,8 @@ from typing import Any
 
 import numpy as np
 
-from brakegym.diagnosis import diagnose
+from brakegym.diagnosis import DiagnosisRules, diagnose
+from brakegym.diagnosis.judging import not_bounded_by_data
 from brakegym.effects import EFFECTS
 from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.model_form import load_model_form
@@ -70,6 +73,8 @@ from brakegym.recordings.synth import RANDOM_LIBRARIES, synthesize
 DEFAULT_RECORDINGS = 8
 METHODS = ("brakegym", "sindy")
 KINDS = ("single", "pair", "none", "unexplained")
+# Within this share of the range at both ends, an interval spans the search range (the diagnosis's).
+RANGE_END_SHARE = DiagnosisRules().range_end_share
 # A verdict's label when no effect is selected.
 NOTHING, UNEXPLAINED = "nothing", "unexplained"
 CANDIDATE_KEYS = (
@@ -285,8 +290,13 @@ def metrics(rows: list[dict[str, Any]]) -> dict[str, Any]:
                 confusion[drawn][chosen] += 1
     false_sets = 0
     per_effect = {}
+    unbounded = {"sets": 0, "with_a_false_name": 0}
     for row in rows:
-        false_sets += bool(set(row["selected"]) - {e["id"] for e in row["truth"]})
+        false_name = bool(set(row["selected"]) - {e["id"] for e in row["truth"]})
+        false_sets += false_name
+        if not_bounded_by_data(row["selected"], row.get("ci95") or {}, RANGE_END_SHARE):
+            unbounded["sets"] += 1
+            unbounded["with_a_false_name"] += false_name
     for effect_id in EFFECTS:
         without = [row for row in rows if effect_id not in {e["id"] for e in row["truth"]}]
         falsely = sum(effect_id in row["selected"] for row in without)
@@ -332,6 +342,7 @@ def metrics(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "rate": false_sets / len(rows) if rows else None,
             "per_effect": per_effect,
         },
+        "not_bounded_by_data": unbounded,
         "coverage": {"right_model_sets": right_model, "parameters": coverage},
         "seconds_per_set": float(np.mean([row["seconds"] for row in rows])) if rows else None,
         "measurement_chains": sorted({str(row.get("measurement_chain")) for row in rows}),
@@ -396,6 +407,11 @@ def print_metrics(numbers: dict[str, Any]) -> None:
                 f"  {effect_id:24s} named in {_percent(entry['falsely_named'], entry['sets_without_it'])} "
                 f"of the sets without it; selected {entry['times_selected']} times"
             )
+    unbounded = numbers["not_bounded_by_data"]
+    print(
+        f"selected with a parameter the data do not bound (its 95 % interval spans the search range): "
+        f"{unbounded['sets']} sets, {unbounded['with_a_false_name']} of them with a false name"
+    )
     coverage = numbers["coverage"]
     print(
         f"\n95 % interval coverage where exactly the effects drawn were selected ({coverage['right_model_sets']} sets):"

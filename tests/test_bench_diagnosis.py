@@ -117,6 +117,16 @@ def test_false_naming_over_all_sets_and_per_effect(bench, rows):
     assert false["per_effect"]["gradient"]["falsely_named"] == 0
 
 
+def test_selected_models_with_a_parameter_the_data_do_not_bound_are_counted(bench, rows):
+    # None of the fixture's intervals spans a search range.
+    assert bench.metrics(rows)["not_bounded_by_data"] == {"sets": 0, "with_a_false_name": 0}
+    # A friction level's mu_scale spans 0.5..1.5; a gradient's -40..40 permil.
+    rows[3]["ci95"] = {"mu_scale": [0.5, 1.5]}  # the effect-free set's false name
+    rows[2]["ci95"] = {"gradient_permil": [-40.0, 40.0]}  # a true name
+    rows[0]["ci95"]["gradient_permil"] = [-40.0, 39.0]  # not to the upper end: bounded
+    assert bench.metrics(rows)["not_bounded_by_data"] == {"sets": 2, "with_a_false_name": 1}
+
+
 def test_coverage_only_where_the_model_is_right(bench, rows):
     coverage = bench.metrics(rows)["coverage"]
     # The right model: the pair named in full and the single gradient; not the pair with a
