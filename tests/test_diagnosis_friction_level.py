@@ -2,7 +2,7 @@
 friction factor, judged against the scatter of the factors about it (:func:`brakegym.diagnosis.
 judging.friction_level_shift`). A level of 5 % is named and its interval holds the truth; under a
 speed-sensor scale it is named with the scale; a set whose base friction is moved within its
-scatter selects nothing.
+scatter selects nothing; the level screens no worse than the unmodified model on a train-like set.
 
 The tolerances were fixed before the tests first ran: a fitted level within 0.02 of the truth
 (the factors' mean is known to about 0.05 / sqrt(8) = 0.018), and the 95 % interval holding it.
@@ -13,6 +13,13 @@ import pytest
 
 from brakegym.diagnosis import diagnose
 from brakegym.diagnosis.judging import shared_friction_shift
+from brakegym.diagnosis.pipeline import Diagnoser
+from brakegym.diagnosis.screening import Screening
+from brakegym.diagnosis.weighting import Weighting
+from brakegym.effects import Evidence, FrictionLevel
+from brakegym.recordings.chain import load_measurement_chain
+from brakegym.recordings.format import read_dataset
+from brakegym.recordings.model_form import load_model_form
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -85,3 +92,38 @@ def test_the_shared_shift_is_judged_against_the_larger_of_the_prior_and_the_fact
     shift = shared_friction_shift(1.05, wide, prior_sigma)
     assert shift.scatter == pytest.approx(np.std(wide / 1.05, ddof=1))
     assert abs(shift.z) < 2.0
+
+
+def test_a_friction_level_screens_no_worse_than_the_unmodified_model(tmp_path):
+    # With a level, each recording's friction factor is the product the data see and the level
+    # only centres the factors' prior: its data rows do not depend on the level, and at the level
+    # the factors share the prior rows are no larger than at 1. The screening must see that.
+    # Before, its starts divided the factors by the level, which moved every recording's
+    # friction by it. On a train-like set of the blind benchmark (seed 26, set 10: a level of
+    # 0.88 with a rotating mass, contact-pressure friction and an ED brake) the level screened
+    # above the unmodified chi^2, and it was never fitted.
+    result = synthesize(
+        tmp_path / "set",
+        8,
+        seed=631983099,
+        random_effects=True,
+        measurement_chain=load_measurement_chain("real"),
+        model_form=load_model_form("real_train"),
+    )
+    assert "friction_level" in {effect["id"] for effect in result.key["effects"]}
+    diagnoser = Diagnoser(read_dataset(result.folder).recordings)
+    problem, baseline = diagnoser.problem, diagnoser.unmodified_fit()
+    noise_rho = {channel: model.rho for channel, model in diagnoser.noise_models.items() if np.isfinite(model.rho)}
+    weighting = Weighting(problem, baseline.residual, noise_rho)
+    n = problem.n
+    # Only the friction factors matter to the friction level's screening point.
+    evidence = Evidence(
+        peak_decel_mps2=1.0,
+        peak_disc_C=100.0,
+        friction_factors=baseline.x[len(baseline.free) + 2 * n : len(baseline.free) + 3 * n],
+        nominal_resistance=problem.recordings[0].vehicle.running_resistance,
+    )
+    screening = Screening(problem, weighting, diagnoser.rules, evidence, diagnoser.n_discs, baseline)
+    point = screening.run([FrictionLevel.id])[FrictionLevel.id]
+    unmodified = weighting.chi2(baseline.residual)
+    assert point.chi2 <= unmodified, (point.theta, point.chi2, unmodified)
