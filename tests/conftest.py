@@ -85,3 +85,26 @@ def simulate_one_stop() -> Callable[..., tuple]:
         return model, grid
 
     return run
+
+
+@pytest.fixture(scope="session")
+def synth_train_like() -> Callable[..., object]:
+    """Writes a set of the diagnosis's train-like blind benchmark to ``folder``: 8 recordings of
+    set ``seed`` through the measurement chain ``real`` with the model form ``real_train``, its
+    effects drawn (``random_effects``) as ``brakegym synth --random-effects`` draws them; returns
+    the :class:`~brakegym.recordings.synth.SynthResult`."""
+    from brakegym.recordings.chain import load_measurement_chain
+    from brakegym.recordings.model_form import load_model_form
+    from brakegym.recordings.synth import synthesize
+
+    def synth(folder: Path, seed: int, random_effects: bool = True):
+        return synthesize(
+            folder,
+            8,
+            seed=seed,
+            random_effects=random_effects,
+            measurement_chain=load_measurement_chain("real"),
+            model_form=load_model_form("real_train"),
+        )
+
+    return synth

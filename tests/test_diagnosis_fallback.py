@@ -26,9 +26,7 @@ from brakegym.diagnosis.locate import ResidualTrace
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.diagnosis.signatures import match_signatures
-from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.format import read_dataset
-from brakegym.recordings.model_form import load_model_form
 from brakegym.recordings.synth import EffectRequest, synthesize
 from brakegym.units import STANDARD_GRAVITY_MPS2
 
@@ -184,18 +182,12 @@ def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tm
         assert estimate == pytest.approx(force, rel=FORCE_TOLERANCE), (speed, fitted)
 
 
-def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
+def test_physics_outside_the_library_still_ends_unexplained(tmp_path, synth_train_like):
     # A set of the blind benchmark's train-like run (seed 21, set 4: measurement chain `real`,
     # model form `real_train`, no library effect): pad friction that falls with the contact
     # pressure on every stop. Its coasting matches a running resistance's signature; the fallback
     # fits it, and the rules must reject it.
-    result = synthesize(
-        tmp_path / "set",
-        8,
-        seed=520540898,
-        measurement_chain=load_measurement_chain("real"),
-        model_form=load_model_form("real_train"),
-    )
+    result = synth_train_like(tmp_path / "set", 520540898, random_effects=False)
     assert result.key["expected_selected"] == [] and result.key["expected_unexplained"]
     report = Diagnoser(read_dataset(result.folder).recordings).run().report
     assert report["selected"] == [], report["summary"]
@@ -216,7 +208,7 @@ def test_physics_outside_the_library_still_ends_unexplained(tmp_path):
     assert report["mismatch"]["significant"] and report["mismatch"]["segments"]
 
 
-def test_a_gradient_read_off_coasting_is_fitted_from_friction_factors_gridded_with_it(tmp_path):
+def test_a_gradient_read_off_coasting_is_fitted_from_friction_factors_gridded_with_it(tmp_path, synth_train_like):
     # A set of the blind benchmark's train-like run (seed 26, set 1: measurement chain `real`,
     # model form `real_train`): an 11.45 permil gradient with a running resistance whose A is
     # 7.4 kN above the train's. Coasting reads a gradient of about 21 permil, both forces as one.
@@ -224,14 +216,7 @@ def test_a_gradient_read_off_coasting_is_fitted_from_friction_factors_gridded_wi
     # ended at 20.8 permil and four times the unmodified chi^2; from factors gridded with the
     # gradient acting it must beat the unmodified model, at a gradient that holds the drawn one
     # and what the running resistance adds, and no more.
-    result = synthesize(
-        tmp_path / "set",
-        8,
-        seed=1055700636,
-        random_effects=True,
-        measurement_chain=load_measurement_chain("real"),
-        model_form=load_model_form("real_train"),
-    )
+    result = synth_train_like(tmp_path / "set", 1055700636)
     truth = {effect["id"]: effect["parameters"] for effect in result.key["effects"]}
     assert set(truth) == {"gradient", "running_resistance"}
     recordings = read_dataset(result.folder).recordings

@@ -17,9 +17,7 @@ from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.screening import Screening
 from brakegym.diagnosis.weighting import Weighting
 from brakegym.effects import Evidence, FrictionLevel
-from brakegym.recordings.chain import load_measurement_chain
 from brakegym.recordings.format import read_dataset
-from brakegym.recordings.model_form import load_model_form
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -94,7 +92,7 @@ def test_the_shared_shift_is_judged_against_the_larger_of_the_prior_and_the_fact
     assert abs(shift.z) < 2.0
 
 
-def test_a_friction_level_screens_no_worse_than_the_unmodified_model(tmp_path):
+def test_a_friction_level_screens_no_worse_than_the_unmodified_model(tmp_path, synth_train_like):
     # With a level, each recording's friction factor is the product the data see and the level
     # only centres the factors' prior: its data rows do not depend on the level, and at the level
     # the factors share the prior rows are no larger than at 1. The screening must see that.
@@ -102,14 +100,7 @@ def test_a_friction_level_screens_no_worse_than_the_unmodified_model(tmp_path):
     # friction by it. On a train-like set of the blind benchmark (seed 26, set 10: a level of
     # 0.88 with a rotating mass, contact-pressure friction and an ED brake) the level screened
     # above the unmodified chi^2, and it was never fitted.
-    result = synthesize(
-        tmp_path / "set",
-        8,
-        seed=631983099,
-        random_effects=True,
-        measurement_chain=load_measurement_chain("real"),
-        model_form=load_model_form("real_train"),
-    )
+    result = synth_train_like(tmp_path / "set", 631983099)
     assert "friction_level" in {effect["id"] for effect in result.key["effects"]}
     diagnoser = Diagnoser(read_dataset(result.folder).recordings)
     problem, baseline = diagnoser.problem, diagnoser.unmodified_fit()
