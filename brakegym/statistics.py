@@ -136,6 +136,20 @@ def gauss_newton_covariance(weighted_jacobian: np.ndarray, singular_cutoff: floa
     return np.where(np.isnan(covariance), np.inf, covariance)
 
 
+def conditional_information(information: np.ndarray) -> np.ndarray:
+    """Per parameter, what an information matrix (J' W J) holds of it with the other parameters
+    free: the Schur complement ``I_jj - I_j,o I_oo^+ I_o,j`` (the reciprocal of the covariance's
+    diagonal where the matrix is regular), 0 for a parameter the matrix says nothing of. Through
+    the pseudo-inverse so that a matrix singular along other parameters still answers."""
+    p = information.shape[0]
+    out = np.zeros(p)
+    for j in range(p):
+        others = [k for k in range(p) if k != j]
+        cross = information[j, others]
+        out[j] = information[j, j] - cross @ np.linalg.pinv(information[np.ix_(others, others)]) @ cross
+    return np.maximum(out, 0.0)
+
+
 def paired_t(differences: np.ndarray) -> float:
     """Student's t of the mean of paired differences: inf when they agree exactly and are
     positive, nan with fewer than two."""

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from brakegym.statistics import paired_t, paired_t_p_value
+from brakegym.statistics import conditional_information, paired_t, paired_t_p_value
 
 
 @pytest.mark.parametrize("differences", [[0.3, 0.1], [0.05, 0.2], [-0.1, 0.4], [0.2, -0.5]])
@@ -42,3 +42,23 @@ def test_degenerate_differences():
     assert math.isnan(paired_t_p_value(np.zeros(0)))
     assert paired_t_p_value(np.array([0.25, 0.25, 0.25])) == 0.0
     assert paired_t_p_value(np.array([-0.5, -0.5])) == 1.0
+
+
+def test_conditional_information_of_a_regular_matrix_is_the_reciprocal_of_the_covariance_diagonal():
+    rng = np.random.default_rng(3)
+    jacobian = rng.normal(size=(40, 3))
+    information = jacobian.T @ jacobian
+    expected = 1.0 / np.diag(np.linalg.inv(information))
+    np.testing.assert_allclose(conditional_information(information), expected, rtol=1e-10)
+
+
+def test_conditional_information_is_zero_where_the_matrix_says_nothing_or_cannot_separate():
+    # The third parameter moves no row; the first two move the rows only as their sum.
+    jacobian = np.array([[1.0, 1.0, 0.0], [2.0, 2.0, 0.0], [0.5, 0.5, 0.0]])
+    assert conditional_information(jacobian.T @ jacobian) == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
+    # One more row holds them apart: the rows know the sum s by 1 + 4 + 0.25 = 5.25 and the
+    # difference d by 1, and each parameter, (s +- d) / 2, by 4 / (1 / 5.25 + 1 / 1).
+    jacobian = np.vstack([jacobian, [1.0, -1.0, 0.0]])
+    information = conditional_information(jacobian.T @ jacobian)
+    assert information[:2] == pytest.approx([4 / (1 / 5.25 + 1)] * 2, rel=1e-9)
+    assert information[2] == 0.0

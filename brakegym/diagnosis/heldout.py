@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from ..statistics import conditional_information
 from .fitting import FitProblem, FitResult
 from .weighting import Weighting
 
@@ -24,25 +25,33 @@ class HeldOut:
     residual: np.ndarray  # every row predicted with the effect fitted without its recording
     sse: np.ndarray  # per recording, effective (its friction-factor prior row included)
     steps: np.ndarray  # (recordings, effect parameters): each recording's leave-out change
+    # (recordings, effect parameters): the share of each effect parameter's information (the other
+    # effect parameters free, every recording's nuisance projected out) that the other recordings
+    # hold; near 0 where one recording holds the parameter alone
+    others_share: np.ndarray
 
 
 def held_out(problem: FitProblem, weighting: Weighting, fit: FitResult, chord_iterations: int) -> HeldOut:
     """Each recording predicted with the effect parameters fitted without it."""
     p = len(fit.free)
     steps = np.zeros((problem.n, p))
+    others_share = np.ones((problem.n, p))
     held = fit.residual.copy()
     if p:
-        steps = _leave_one_out_steps(problem, weighting, fit)
+        blocks, information = _projected_information(problem, weighting, fit)
+        steps = _leave_one_out_steps(problem, fit, blocks, information)
+        others_share = _others_share(information)
         held = _simulated(problem, fit, steps, chord_iterations)
-    return HeldOut(held, weighting.recording_sse(held), steps)
+    return HeldOut(held, weighting.recording_sse(held), steps, others_share)
 
 
-def _leave_one_out_steps(problem: FitProblem, weighting: Weighting, fit: FitResult) -> np.ndarray:
-    """Per recording, the change of the effect parameters when it is left out: one weighted
-    Gauss-Newton step of the others' data, each recording's nuisance projected out, bounded."""
+def _projected_information(
+    problem: FitProblem, weighting: Weighting, fit: FitResult
+) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], list[np.ndarray]]:
+    """Per recording, its rows, the effect columns of the Jacobian with its nuisance projected
+    out, their weights, and the weighted information matrix those columns give."""
     p = len(fit.free)
-    r = fit.residual
-    projected, blocks = [], []
+    blocks, information = [], []
     for i in range(problem.n):
         rows = np.flatnonzero(problem.recording_of == i)
         columns = problem.nuisance_columns(p, i)
@@ -51,13 +60,26 @@ def _leave_one_out_steps(problem: FitProblem, weighting: Weighting, fit: FitResu
         a = effect - q @ (q.T @ effect)
         w = weighting.weights[rows]
         blocks.append((rows, a, w))
-        projected.append(a.T @ (w[:, None] * a))
-    total = np.sum(projected, axis=0)
+        information.append(a.T @ (w[:, None] * a))
+    return blocks, information
+
+
+def _leave_one_out_steps(
+    problem: FitProblem,
+    fit: FitResult,
+    blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    information: list[np.ndarray],
+) -> np.ndarray:
+    """Per recording, the change of the effect parameters when it is left out: one weighted
+    Gauss-Newton step of the others' data, each recording's nuisance projected out, bounded."""
+    p = len(fit.free)
+    r = fit.residual
+    total = np.sum(information, axis=0)
     lower, upper = problem.bounds(fit.free)
     theta = fit.x[:p]
     steps = np.zeros((problem.n, p))
     for i, (rows, a, w) in enumerate(blocks):
-        others = total - projected[i] + 1e-9 * np.eye(p)
+        others = total - information[i] + 1e-9 * np.eye(p)
         pull = a.T @ (w * r[rows])
         # The others' optimum inside the parameter bounds (the quadratic s'Os - 2 s'g as a bounded
         # least-squares problem through O = L L'). Unbounded, a recording that holds most of an
@@ -69,6 +91,18 @@ def _leave_one_out_steps(problem: FitProblem, weighting: Weighting, fit: FitResu
         )
         steps[i] = solution.x
     return steps
+
+
+def _others_share(information: list[np.ndarray]) -> np.ndarray:
+    """Per recording and effect parameter, the share of the parameter's information that the
+    other recordings hold (1 for a parameter no recording informs)."""
+    total = conditional_information(np.sum(information, axis=0))
+    shares = np.ones((len(information), total.size))
+    informed = total > 0
+    for i, own in enumerate(information):
+        others = conditional_information(np.sum(information, axis=0) - own)
+        shares[i, informed] = np.minimum(others[informed] / total[informed], 1.0)
+    return shares
 
 
 def _simulated(problem: FitProblem, fit: FitResult, steps: np.ndarray, chord_iterations: int) -> np.ndarray:

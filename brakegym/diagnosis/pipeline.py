@@ -249,7 +249,7 @@ class Diagnoser:
         x0 = np.concatenate([[start[parameter.name] for parameter in free], nuisance])
         fit = problem.fit(list(ids), x0, fixed=fixed, max_iterations=rules.fit_iterations)
         candidate = Judge(problem, weighting, rules, evidence, baseline).candidate(ids, fit)
-        candidate_entries(problem, weighting, baseline, [candidate], rules.range_end_share)
+        candidate_entries(problem, weighting, baseline, [candidate], rules)
         add_bootstrap_intervals(problem, candidate, self.noise_models, rules, self.decel_bias_sigma)
         return candidate
 
@@ -313,7 +313,7 @@ class Diagnoser:
             pairs += swapped
             verdict = judge.with_swapped_pairs(verdict, swapped)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
-        entries = candidate_entries(problem, weighting, baseline, singles + pairs, rules.range_end_share)
+        entries = candidate_entries(problem, weighting, baseline, singles + pairs, rules)
         if verdict.selected is not None:
             add_bootstrap_intervals(problem, verdict.selected, self.noise_models, rules, self.decel_bias_sigma)
         report = build_report(

@@ -5,8 +5,12 @@ Parameters come with 95 % intervals, the wider of the Gauss-Newton interval (eff
 and the jackknife over recordings with Student's t: the Gauss-Newton covariance sees only the
 noise of the samples, not what varies between recordings and no nuisance absorbs (each
 application's running-resistance draw shifts a fitted gradient); the spread of the
-leave-one-recording-out estimates does. The selected candidate's intervals are then widened to
-take in a parametric bootstrap's (:mod:`.bootstrap`).
+leave-one-recording-out estimates does. Where one recording holds a parameter alone (the others
+hold less than ``jackknife_min_others_share`` of its information: a thermal fade that one stop
+reaches) the jackknife has nothing to measure, its leave-one-out refit runs to a bound, and the
+parameter's interval is the Gauss-Newton one; the report names the recording
+(``resting_on_one_recording``). The selected candidate's intervals are then widened to take in a
+parametric bootstrap's (:mod:`.bootstrap`), which redraws the scatter between applications.
 """
 
 from __future__ import annotations
@@ -26,13 +30,15 @@ from ..recordings.columns import DECEL, DISC_TEMPERATURE, SPEED
 from ..recordings.replay import compare
 from ..statistics import gauss_newton_covariance
 from .fitting import FitProblem, FitResult
+from .heldout import HeldOut
 from .judging import Candidate, Verdict, mismatch_explained_share, not_bounded_by_data
+from .rules import DiagnosisRules
 from .screening import ScreenedPoint
 from .weighting import CHANNEL_NAMES, Weighting
 
 
 def ci95(
-    problem: FitProblem, weighting: Weighting, fit: FitResult, leave_one_out_steps: np.ndarray
+    problem: FitProblem, weighting: Weighting, fit: FitResult, heldout: HeldOut, min_others_share: float
 ) -> dict[str, list[float]]:
     """95 % intervals of a fit's parameters (see the module documentation), inside the bounds;
     integer parameters held fixed have their value as both ends."""
@@ -46,9 +52,10 @@ def ci95(
             covariance = gauss_newton_covariance(jac * np.sqrt(weighting.weights)[:, None])[:p, :p] * variance
         except np.linalg.LinAlgError:
             covariance = np.full((p, p), np.nan)
-        steps = leave_one_out_steps
+        steps = heldout.steps
         n = problem.n
         jackknife = (n - 1) / n * np.sum((steps - steps.mean(axis=0)) ** 2, axis=0) if n > 2 else np.zeros(p)
+        jackknife[np.min(heldout.others_share, axis=0) < min_others_share] = 0.0
         quantile = float(stats.t.ppf(0.975, n - 1)) if n > 2 else 1.96
         for j, parameter in enumerate(fit.free):
             half = max(1.96 * math.sqrt(max(covariance[j, j], 0.0)), quantile * math.sqrt(jackknife[j]))
@@ -59,6 +66,19 @@ def ci95(
             ]
     for name, value in fit.fixed.items():
         out[name] = [value, value]
+    return out
+
+
+def resting_on_one_recording(
+    problem: FitProblem, fit: FitResult, heldout: HeldOut, min_others_share: float
+) -> dict[str, str]:
+    """Each effect parameter that one recording holds alone (the others hold less than
+    ``min_others_share`` of its information), with that recording's name."""
+    out = {}
+    for j, parameter in enumerate(fit.free):
+        i = int(np.argmin(heldout.others_share[:, j]))
+        if heldout.others_share[i, j] < min_others_share:
+            out[parameter.name] = problem.recordings[i].name
     return out
 
 
@@ -76,23 +96,25 @@ def candidate_entries(
     weighting: Weighting,
     baseline: FitResult,
     candidates: Sequence[Candidate],
-    range_end_share: float,
+    rules: DiagnosisRules,
 ) -> list[dict[str, Any]]:
-    """Every candidate's report entry, best BIC first (``range_end_share``: see
-    :func:`.judging.not_bounded_by_data`)."""
+    """Every candidate's report entry, best BIC first."""
     base_rms = weighting.rms(baseline.residual)
     base_stop = stop_errors(baseline)
     entries = []
     for candidate in sorted(candidates, key=lambda c: c.delta_bic):
         fit = candidate.fit
         share = mismatch_explained_share(weighting, baseline.residual, candidate.chi2_eff)
-        intervals = ci95(problem, weighting, fit, candidate.heldout.steps)
+        intervals = ci95(problem, weighting, fit, candidate.heldout, rules.jackknife_min_others_share)
         candidate.report.update(
             {
                 "effects": list(candidate.effect_ids),
                 "parameters": {k: round(v, 5) for k, v in fit.parameters.items()},
                 "ci95": intervals,
-                "not_bounded_by_data": not_bounded_by_data(candidate.effect_ids, intervals, range_end_share),
+                "not_bounded_by_data": not_bounded_by_data(candidate.effect_ids, intervals, rules.range_end_share),
+                "resting_on_one_recording": resting_on_one_recording(
+                    problem, fit, candidate.heldout, rules.jackknife_min_others_share
+                ),
                 "rms_before": base_rms,
                 "rms_after": weighting.rms(fit.residual),
                 "heldout_rms_before": base_rms,
