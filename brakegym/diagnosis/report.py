@@ -257,6 +257,14 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
                 f" The data do not bound {', '.join(unbounded)}: the 95 % interval spans the search range, "
                 f"so the value is not measured."
             )
+        resting = selected.report.get("resting_on_one_recording") or {}
+        for recording in sorted(set(resting.values())):
+            names = [name for name, where in resting.items() if where == recording]
+            text += (
+                f" {', '.join(names)} rest{'s' if len(names) == 1 else ''} on {Path(recording).name} alone: "
+                f"no other recording confirms {'it' if len(names) == 1 else 'them'}, and the interval is the fit's "
+                f"and the bootstrap's."
+            )
         if report["indistinguishable"]:
             pairs = "; ".join(
                 f"{a} and {b} (their corrections to the model correlate "
