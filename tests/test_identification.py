@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from brakegym import campaigns
 from brakegym import config as cfg
@@ -24,6 +25,7 @@ from brakegym.cli import main
 from brakegym.identification import (
     DynoCurves,
     Series,
+    deterministic,
     dyno_curves_from_campaign,
     identify,
     load_identification_config,
@@ -135,6 +137,25 @@ def test_fit_is_deterministic_and_flags_unfitted_thermal_error(tmp_path, monkeyp
     assert json.dumps(first.as_dict()) == json.dumps(second.as_dict())
     temperature = next(c for c in first.channels if c.channel == "T_fric_C")
     assert temperature.lag1_autocorrelation > 0.8 and temperature.effective_samples < 0.2 * temperature.samples
+
+
+def test_the_fit_runs_on_one_blas_thread_whatever_the_callers_limit(tmp_path, monkeypatch):
+    # A multithreaded BLAS sums in an order set by its thread count: a fit's last bits would
+    # depend on the machine's cores.
+    curves = synthetic_dyno_curves(tmp_path, monkeypatch, {"a": 0.0088}, ["V0120_Case1"], seed=5)
+    seen = []
+    least_squares = deterministic.optimize.least_squares
+
+    def least_squares_recording_threads(*args, **kwargs):
+        seen.extend(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas")
+        return least_squares(*args, **kwargs)
+
+    monkeypatch.setattr(deterministic.optimize, "least_squares", least_squares_recording_threads)
+    with threadpool_limits(limits=2, user_api="blas"):
+        identify(curves, ["a"], MATERIAL, DISC, SETTINGS)
+        outside = [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+    assert seen and set(seen) == {1}, seen
+    assert outside and set(outside) == {2}, outside  # the caller's limit is back after the fit
 
 
 def test_curves_round_trip_through_csv(tmp_path, monkeypatch):

@@ -41,17 +41,13 @@ The thresholds are :class:`.rules.DiagnosisRules`; what the diagnosis needs to k
 its class says (:class:`brakegym.effects.Effect`). ``docs/diagnosis.md`` describes the method and
 its blind benchmark.
 
-The linear algebra runs on one BLAS thread (threadpoolctl): a multithreaded BLAS sums in an order
-that depends on its thread count, and a verdict that turns on the last bits (two candidates a
-hair apart) would then depend on the machine's cores. The same recordings give the same report
-bit for bit whatever the cores (not across BLAS builds: another build's kernels round
-differently).
+The linear algebra runs on one BLAS thread (:mod:`brakegym.execution.blas`): a verdict that turns
+on the last bits (two candidates a hair apart) would otherwise depend on the machine's cores.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -60,9 +56,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel, in_library_order
+from ..execution.blas import on_one_blas_thread
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
@@ -121,17 +117,6 @@ def located_start_max_m() -> float:
         for spec in effect.parameters
         if spec.name.endswith("start_m")
     )
-
-
-def _on_one_blas_thread(method):
-    """``method`` run with the BLAS libraries limited to one thread (see the module documentation)."""
-
-    @functools.wraps(method)
-    def limited(*args, **kwargs):
-        with threadpool_limits(limits=1, user_api="blas"):
-            return method(*args, **kwargs)
-
-    return limited
 
 
 class Diagnoser:
@@ -203,7 +188,7 @@ class Diagnoser:
         second = find_position_step(traces, bin_m, TRAIN_LENGTH_M, earlier=(first,)) if self._located(first) else None
         return [first] if second is None else [first, second]
 
-    @_on_one_blas_thread
+    @on_one_blas_thread
     def unmodified_fit(self) -> FitResult:
         """The unmodified model fitted to the recordings: each recording's nuisance alone."""
         return self.problem.fit([], self.problem.gridded_start())
@@ -212,7 +197,7 @@ class Diagnoser:
         noise_rho = {c: m.rho for c, m in self.noise_models.items() if np.isfinite(m.rho)}
         return Weighting(self.problem, baseline.residual, noise_rho)
 
-    @_on_one_blas_thread
+    @on_one_blas_thread
     def fit_effects(
         self,
         effect_ids: Sequence[str],
@@ -286,7 +271,7 @@ class Diagnoser:
                 best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
         return start, nuisance
 
-    @_on_one_blas_thread
+    @on_one_blas_thread
     def run(self) -> Diagnosis:
         problem, rules = self.problem, self.rules
         baseline = self.unmodified_fit()

@@ -19,6 +19,8 @@ carries its seed and its stops' indices, see :mod:`brakegym.campaigns.chunks`).
   an executor in chunks of rows, for the rare-event estimators.
 - :mod:`.options`: :func:`~.options.executor_from_options`, an executor from the command line's
   ``--executor``, ``--workers`` and ``--dask-address``.
+- :mod:`.blas`: :func:`~.blas.on_one_blas_thread`, the fits' linear algebra on one BLAS thread, so
+  that a fit's result does not depend on the machine's cores.
 
 Importing this package loads neither numba nor distributed; the executors load what they run.
 """

@@ -44,6 +44,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .. import config as cfg
+from ..execution.blas import on_one_blas_thread
 from ..statistics import effective_sample_share, gauss_newton_covariance, lag1_autocorrelation
 from .cases import CaseSet
 from .parameters import IdentificationConfig, ParameterSpace, load_identification_config
@@ -251,6 +252,7 @@ def _describe_direction(vector: np.ndarray, symbols: Sequence[str]) -> str:
     return " ".join(terms)
 
 
+@on_one_blas_thread
 def identify(
     cases: CaseSet,
     parameters: Sequence[str],

@@ -53,6 +53,7 @@ from scipy import optimize
 from .. import config as cfg
 from ..applications import TrainApplication, dyno_stops, train_stops
 from ..defaults import DEFAULT_STEP_S
+from ..execution.blas import on_one_blas_thread
 from ..observables import DYNO_OBSERVABLES, TRAIN_OBSERVABLES
 from ..physics import FrictionDraw
 from .parameters import IdentificationConfig, load_identification_config
@@ -341,6 +342,7 @@ def _fit(
     return solution.x * scale
 
 
+@on_one_blas_thread
 def identify_scatter(
     groups: Sequence[SpreadGroup],
     settings: IdentificationConfig | None = None,
