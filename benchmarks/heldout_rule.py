@@ -11,6 +11,12 @@ and not drawn candidates each rule passes, and every candidate the former rule a
 p-value is computed from the row's t and its recordings, so rows written before the rule changed
 can be read.
 
+A friction level is judged by a paired t over every recording's held-out gain, which one
+recording's large gain can keep short of the rule while the others all gain a little. Beside
+it, a one-sided Wilcoxon signed-rank test on the same gains (``heldout_gain_per_recording``),
+which that recording moves no more than any other with the largest gain: printed are the counts
+each passes (at ``heldout_max_p``) and every level on which the two disagree.
+
 Usage: ``python benchmarks/heldout_rule.py ROWS.json [ROWS.json ...]``
 """
 
@@ -19,6 +25,9 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
+import numpy as np
+from scipy import stats
 
 from brakegym.diagnosis import DiagnosisRules
 from brakegym.statistics import paired_t_tail
@@ -45,8 +54,10 @@ def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
                 continue
             t = float(candidate["heldout_t"])
             p = paired_t_tail(t, recordings)
+            gains = candidate.get("heldout_gain_per_recording")
             out.append(
                 {
+                    "rank_p": signed_rank_p(gains) if effect_id == "friction_level" and gains else None,
                     "set": f"{row.get('file', '')}#{row['index']}",
                     "effect": effect_id,
                     "drawn": effect_id in drawn,
@@ -58,6 +69,32 @@ def judged_singles(rows: list[dict], rules: DiagnosisRules) -> list[dict]:
                 }
             )
     return out
+
+
+def signed_rank_p(gains: list[float]) -> float:
+    """One-sided p-value of Wilcoxon's signed-rank test that the gains lie above 0 (recordings
+    with no gain at all left out; none left: 1)."""
+    values = np.asarray(gains, float)
+    if not np.any(values != 0.0):
+        return 1.0
+    return float(stats.wilcoxon(values, alternative="greater").pvalue)
+
+
+def print_rank_test(singles: list[dict], rules: DiagnosisRules) -> None:
+    """The friction levels: the rule now against the signed-rank test, and where they disagree."""
+    levels = [c for c in singles if c["rank_p"] is not None]
+    if not levels:
+        return
+    rank = f"signed-rank p <= {rules.heldout_max_p:g}"
+    for label, passes in (("the rule now", lambda c: c["now"]), (rank, lambda c: c["rank_p"] <= rules.heldout_max_p)):
+        true = sum(1 for c in levels if passes(c) and c["drawn"])
+        false = sum(1 for c in levels if passes(c) and not c["drawn"])
+        print(f"  friction level, {label}: passes {true} drawn, {false} not drawn")
+    print("friction levels on which the two disagree:")
+    for c in sorted(levels, key=lambda c: c["rank_p"]):
+        if c["now"] != (c["rank_p"] <= rules.heldout_max_p):
+            drawn = "drawn" if c["drawn"] else "NOT drawn"
+            print(f"  {c['set']}: ({drawn}) t {c['t']:.2f}, p {c['p']:.3f}; signed-rank p {c['rank_p']:.3f}")
 
 
 def main() -> None:
@@ -84,6 +121,7 @@ def main() -> None:
     passing_true = [c["p"] for c in singles if c["former"] and c["drawn"]]
     if passing_true:
         print(f"largest p of a drawn effect passing {former}: {max(passing_true):.4f}")
+    print_rank_test(singles, rules)
 
 
 if __name__ == "__main__":

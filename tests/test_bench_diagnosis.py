@@ -3,6 +3,7 @@ counted both ways, the confusion matrix, the false-naming rate, interval coverag
 where the model is right; and the SINDy baseline (:mod:`brakegym.diagnosis.baseline`) recovering
 a known sparse answer from a synthetic residual. No diagnosis runs here."""
 
+import itertools
 import json
 
 import numpy as np
@@ -285,3 +286,34 @@ def test_a_random_library_keeps_the_runs_sets_and_rides_with_each(bench):
     along = list(bench.drawn_jobs(4, 6, 0.3, 8, library="along_track"))
     assert [job[:-1] for job in along] == [job[:-1] for job in default]
     assert {job[-1] for job in default} == {"default"} and {job[-1] for job in along} == {"along_track"}
+
+
+def test_heldout_rule_study_reads_a_friction_level_by_a_signed_rank_test_too(load_benchmark):
+    study = load_benchmark("heldout_rule")
+    # One recording's large gain keeps the paired t short; the others all gain a little.
+    gains = [0.021, 0.05, 0.2, 0.032, 0.018, -0.012, 0.027, -0.008]
+    row = {
+        "index": 10,
+        "truth": [{"id": "friction_level", "parameters": {}}],
+        "candidates": [
+            {
+                "effects": ["friction_level"],
+                "delta_bic": 5.0,
+                "relevant_size": True,
+                "heldout_t": 1.09,
+                "heldout_acts_on": [f"rec_{i}" for i in range(8)],
+                "heldout_gain_per_recording": gains,
+                "friction_level_shift": {"z": -4.2},
+            }
+        ],
+    }
+    (judged,) = study.judged_singles([row], study.DiagnosisRules())
+    assert judged["drawn"] and not judged["now"]
+    # The exact one-sided p: the share of the 2^8 sign patterns of the ranks whose positive rank
+    # sum reaches the observed one (ranks of |gain|: the two losses are ranks 1 and 2).
+    ranks = np.argsort(np.argsort(np.abs(gains))) + 1
+    observed = ranks[np.array(gains) > 0].sum()
+    signs = np.array(list(itertools.product([0, 1], repeat=8)))
+    assert judged["rank_p"] == pytest.approx(np.mean(signs @ ranks >= observed), rel=1e-9)
+    assert judged["rank_p"] < 0.05
+    assert study.signed_rank_p([0.0, 0.0, 0.0]) == 1.0
