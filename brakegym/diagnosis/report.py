@@ -5,12 +5,16 @@ Parameters come with 95 % intervals, the wider of the Gauss-Newton interval (eff
 and the jackknife over recordings with Student's t: the Gauss-Newton covariance sees only the
 noise of the samples, not what varies between recordings and no nuisance absorbs (each
 application's running-resistance draw shifts a fitted gradient); the spread of the
-leave-one-recording-out estimates does. Where one recording holds a parameter alone (the others
-hold less than ``jackknife_min_others_share`` of its information: a thermal fade that one stop
-reaches) the jackknife has nothing to measure, its leave-one-out refit runs to a bound, and the
-parameter's interval is the Gauss-Newton one; the report names the recording
-(``resting_on_one_recording``). The selected candidate's intervals are then widened to take in a
-parametric bootstrap's (:mod:`.bootstrap`), which redraws the scatter between applications.
+leave-one-recording-out estimates does. The selected candidate's intervals are then widened to
+take in a parametric bootstrap's (:mod:`.bootstrap`).
+
+Where one recording holds a parameter alone (with it left out, the others hold less than
+``one_recording_share`` of the parameter's information: a thermal fade that one stop reaches),
+the report names that recording (``resting_on_one_recording``). Its jackknife then steps towards
+the parameter's bounds and the interval is wide, often over the whole search range; that width is
+kept. The Gauss-Newton interval with the bootstrap's, tried in its place, missed the truth on
+fades that one stop reaches, whose own friction scatter moves the estimate further than the
+bootstrap's replicates move (``docs/diagnosis.md``, interval coverage).
 """
 
 from __future__ import annotations
@@ -37,9 +41,7 @@ from .screening import ScreenedPoint
 from .weighting import CHANNEL_NAMES, Weighting
 
 
-def ci95(
-    problem: FitProblem, weighting: Weighting, fit: FitResult, heldout: HeldOut, min_others_share: float
-) -> dict[str, list[float]]:
+def ci95(problem: FitProblem, weighting: Weighting, fit: FitResult, heldout: HeldOut) -> dict[str, list[float]]:
     """95 % intervals of a fit's parameters (see the module documentation), inside the bounds;
     integer parameters held fixed have their value as both ends."""
     p = len(fit.free)
@@ -55,7 +57,6 @@ def ci95(
         steps = heldout.steps
         n = problem.n
         jackknife = (n - 1) / n * np.sum((steps - steps.mean(axis=0)) ** 2, axis=0) if n > 2 else np.zeros(p)
-        jackknife[np.min(heldout.others_share, axis=0) < min_others_share] = 0.0
         quantile = float(stats.t.ppf(0.975, n - 1)) if n > 2 else 1.96
         for j, parameter in enumerate(fit.free):
             half = max(1.96 * math.sqrt(max(covariance[j, j], 0.0)), quantile * math.sqrt(jackknife[j]))
@@ -105,7 +106,7 @@ def candidate_entries(
     for candidate in sorted(candidates, key=lambda c: c.delta_bic):
         fit = candidate.fit
         share = mismatch_explained_share(weighting, baseline.residual, candidate.chi2_eff)
-        intervals = ci95(problem, weighting, fit, candidate.heldout, rules.jackknife_min_others_share)
+        intervals = ci95(problem, weighting, fit, candidate.heldout)
         candidate.report.update(
             {
                 "effects": list(candidate.effect_ids),
@@ -113,7 +114,7 @@ def candidate_entries(
                 "ci95": intervals,
                 "not_bounded_by_data": not_bounded_by_data(candidate.effect_ids, intervals, rules.range_end_share),
                 "resting_on_one_recording": resting_on_one_recording(
-                    problem, fit, candidate.heldout, rules.jackknife_min_others_share
+                    problem, fit, candidate.heldout, rules.one_recording_share
                 ),
                 "rms_before": base_rms,
                 "rms_after": weighting.rms(fit.residual),
@@ -260,10 +261,11 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
         resting = selected.report.get("resting_on_one_recording") or {}
         for recording in sorted(set(resting.values())):
             names = [name for name, where in resting.items() if where == recording]
+            one = len(names) == 1
             text += (
-                f" {', '.join(names)} rest{'s' if len(names) == 1 else ''} on {Path(recording).name} alone: "
-                f"no other recording confirms {'it' if len(names) == 1 else 'them'}, and the interval is the fit's "
-                f"and the bootstrap's."
+                f" {', '.join(names)} rest{'s' if one else ''} on {Path(recording).name} alone: no other recording "
+                f"confirms {'it' if one else 'them'}, and {'its' if one else 'their'} interval is what the others "
+                f"allow with that recording left out."
             )
         if report["indistinguishable"]:
             pairs = "; ".join(

@@ -131,10 +131,8 @@ class DiagnosisRules:
     #: each refits the selected model once, so the cost grows linearly; below 3, no bootstrap
     bootstrap_replicates: int = 12
     #: a parameter whose information the other recordings hold less than this share of, with
-    #: any one recording left out, rests on that recording alone: the jackknife over recordings,
-    #: whose leave-one-out refit has nothing left to rest it on, is no measure of its spread, and
-    #: its interval is the Gauss-Newton one (with the bootstrap's, which redraws the scatter)
-    jackknife_min_others_share: float = 0.1
+    #: one recording left out, rests on that recording alone (reported, ``resting_on_one_recording``)
+    one_recording_share: float = 0.1
     #: the scatter set-up (``configs/setups``) the bootstrap draws each application's friction and
     #: running resistance from, ASSUMED to be the one ``brakegym synth`` writes its sets with
     bootstrap_scatter_setup: str = "mcs-75-25"
