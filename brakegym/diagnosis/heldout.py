@@ -96,11 +96,12 @@ def _leave_one_out_steps(
 def _others_share(information: list[np.ndarray]) -> np.ndarray:
     """Per recording and effect parameter, the share of the parameter's information that the
     other recordings hold (1 for a parameter no recording informs)."""
-    total = conditional_information(np.sum(information, axis=0))
+    summed = np.sum(information, axis=0)
+    total = conditional_information(summed)
     shares = np.ones((len(information), total.size))
     informed = total > 0
     for i, own in enumerate(information):
-        others = conditional_information(np.sum(information, axis=0) - own)
+        others = conditional_information(summed - own)
         shares[i, informed] = np.minimum(others[informed] / total[informed], 1.0)
     return shares
 
