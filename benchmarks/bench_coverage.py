@@ -21,7 +21,11 @@ Printed per effect and parameter: the sets, how many intervals hold the truth (t
 relative error; per effect, the sets where every parameter's interval holds it. An interval that
 spans its parameter's whole search range (the report's ``not_bounded_by_data``) holds any truth:
 such intervals are counted apart (``spans range``), and a set with one is not counted as covered
-for its effect ("every interval holds the truth" asks that the data bound them).
+for its effect ("every interval holds the truth" asks that the data bound them). A parameter that
+one recording holds alone (the report's ``resting_on_one_recording``: a fade only the hottest stop
+reaches) has a jackknife interval stepped towards its bounds, which often holds the truth by being
+wide without spanning the range: such parameters and their sets are counted apart too (``rests on
+one``), so that a coverage rate shows how much of it they make.
 
 Usage: ``python benchmarks/bench_coverage.py --sets-per-effect 4 --seed 1 --json cov1.json``.
 Runs with different seeds can go on side by side (one per core) and be summarized together:
@@ -94,6 +98,7 @@ def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -
         row["seconds"] = round(time.time() - started, 1)
     report = candidate.report
     row["fitted"] = report["parameters"]
+    row["resting_on_one_recording"] = sorted(report["resting_on_one_recording"])
     for kind in INTERVALS:
         row[kind] = {k: v for k, v in report.get(kind, {}).items() if k not in integer}
     return row
@@ -109,10 +114,18 @@ def clopper_pearson(hits: int, n: int) -> tuple[float, float]:
 def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Per effect and parameter: sets, intervals holding the truth (each kind), median error."""
     per_parameter: dict[str, dict[str, Any]] = defaultdict(
-        lambda: {"sets": 0, "errors": [], "spans_range": 0, **{k: 0 for k in INTERVALS}}
+        lambda: {"sets": 0, "errors": [], "spans_range": 0, "rests_on_one": 0, **{k: 0 for k in INTERVALS}}
     )
     per_effect: dict[str, dict[str, int]] = defaultdict(
-        lambda: {"sets": 0, "all_covered": 0, "spanning_range": 0, "not_expressed": 0}
+        lambda: {
+            "sets": 0,
+            "all_covered": 0,
+            "spanning_range": 0,
+            "resting_on_one_recording": 0,
+            "covered_resting_on_one_recording": 0,
+            "resting_not_recorded": 0,
+            "not_expressed": 0,
+        }
     )
     for row in rows:
         effect = per_effect[row["effect"]]
@@ -122,6 +135,10 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
         effect["sets"] += 1
         reported = row["ci95"]
         unbounded = not_bounded_by_data([row["effect"]], reported, RANGE_END_SHARE)
+        # Rows written before the report had the key say nothing either way.
+        resting = row.get("resting_on_one_recording")
+        effect["resting_not_recorded"] += resting is None
+        resting = set(resting or ())
         for name, truth in row["truth"].items():
             if name not in reported:  # an integer parameter, held at the truth
                 continue
@@ -129,13 +146,15 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
             entry["sets"] += 1
             entry["errors"].append(abs(row["fitted"][name] - truth) / max(abs(truth), 1e-9))
             entry["spans_range"] += name in unbounded
+            entry["rests_on_one"] += name in resting
             for kind in INTERVALS:
                 low, high = row[kind].get(name, (np.nan, np.nan))
                 entry[kind] += bool(low <= truth <= high)
+        covered = not unbounded and all(low <= row["truth"][name] <= high for name, (low, high) in reported.items())
         effect["spanning_range"] += bool(unbounded)
-        effect["all_covered"] += not unbounded and all(
-            low <= row["truth"][name] <= high for name, (low, high) in reported.items()
-        )
+        effect["all_covered"] += covered
+        effect["resting_on_one_recording"] += bool(resting)
+        effect["covered_resting_on_one_recording"] += bool(resting) and covered
     parameters = {}
     for name, entry in sorted(per_parameter.items()):
         n = entry["sets"]
@@ -143,6 +162,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "sets": n,
             **{f"covered_{kind}": entry[kind] for kind in INTERVALS},
             "spans_search_range": entry["spans_range"],
+            "rests_on_one_recording": entry["rests_on_one"],
             "coverage_ci95_clopper_pearson": [round(v, 3) for v in clopper_pearson(entry["ci95"], n)],
             "median_relative_error": float(np.median(entry["errors"])),
         }
@@ -152,7 +172,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def print_summary(summary: dict[str, Any]) -> None:
     print(
         f"{'parameter':40s} {'sets':>4s} {'ci95':>9s} {'its 95 % CI':>13s} {'GN/jackknife':>12s} "
-        f"{'bootstrap':>9s} {'spans range':>11s} {'median error':>12s}"
+        f"{'bootstrap':>9s} {'spans range':>11s} {'rests on one':>12s} {'median error':>12s}"
     )
     for name, entry in summary["parameters"].items():
         n = entry["sets"]
@@ -160,13 +180,21 @@ def print_summary(summary: dict[str, Any]) -> None:
         print(
             f"{name:40s} {n:4d} {entry['covered_ci95']:4d}/{n:<4d} {100 * low:5.0f}-{100 * high:3.0f} % "
             f"{entry['covered_ci95_gauss_newton_jackknife']:7d}/{n:<4d} {entry['covered_ci95_bootstrap']:4d}/{n:<4d} "
-            f"{entry['spans_search_range']:6d}/{n:<4d} {100 * entry['median_relative_error']:11.1f} %"
+            f"{entry['spans_search_range']:6d}/{n:<4d} {entry['rests_on_one_recording']:7d}/{n:<4d} "
+            f"{100 * entry['median_relative_error']:11.1f} %"
         )
     total = sum(e["sets"] for e in summary["effects"].values())
     covered = sum(e["all_covered"] for e in summary["effects"].values())
     print("\nper effect, sets where every parameter's ci95 holds the truth and none spans its search range:")
     for effect, entry in summary["effects"].items():
         notes = [f"{entry['spanning_range']} with an interval over the search range"] if entry["spanning_range"] else []
+        if entry["resting_on_one_recording"]:
+            notes.append(
+                f"{entry['resting_on_one_recording']} resting on one recording, "
+                f"{entry['covered_resting_on_one_recording']} of them covered"
+            )
+        if entry["resting_not_recorded"]:
+            notes.append(f"{entry['resting_not_recorded']} from rows without resting_on_one_recording")
         notes += [f"{entry['not_expressed']} not expressed"] if entry["not_expressed"] else []
         shown = f" ({'; '.join(notes)})" if notes else ""
         print(f"  {effect:26s} {entry['all_covered']:3d}/{entry['sets']:<3d}{shown}")

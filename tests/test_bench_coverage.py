@@ -13,7 +13,7 @@ def bench(load_benchmark):
     return load_benchmark("bench_coverage")
 
 
-def row(effect, truth, fitted, ci95, gauss_newton_jackknife=None, bootstrap=None, expressed=True):
+def row(effect, truth, fitted, ci95, gauss_newton_jackknife=None, bootstrap=None, expressed=True, resting=()):
     out = {"effect": effect, "seed": 0, "truth": truth, "expressed": expressed}
     if expressed:
         out.update(
@@ -21,8 +21,21 @@ def row(effect, truth, fitted, ci95, gauss_newton_jackknife=None, bootstrap=None
             ci95=ci95,
             ci95_gauss_newton_jackknife=gauss_newton_jackknife or ci95,
             ci95_bootstrap=bootstrap or {},
+            resting_on_one_recording=list(resting),
         )
     return out
+
+
+def effect_counts(sets, all_covered, spanning_range=0, resting=0, covered_resting=0, not_recorded=0, not_expressed=0):
+    return {
+        "sets": sets,
+        "all_covered": all_covered,
+        "spanning_range": spanning_range,
+        "resting_on_one_recording": resting,
+        "covered_resting_on_one_recording": covered_resting,
+        "resting_not_recorded": not_recorded,
+        "not_expressed": not_expressed,
+    }
 
 
 def test_coverage_is_counted_per_parameter_and_interval_kind(bench):
@@ -50,14 +63,9 @@ def test_coverage_is_counted_per_parameter_and_interval_kind(bench):
     assert loss["covered_ci95"] == 1 and loss["covered_ci95_bootstrap"] == 1
     assert loss["median_relative_error"] == pytest.approx(0.1)
     assert onset["spans_search_range"] == 0 and loss["spans_search_range"] == 0
-    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "spanning_range": 0, "not_expressed": 1}
+    assert summary["effects"]["thermal_fade"] == effect_counts(2, 1, not_expressed=1)
     assert "brake_unit_failure.failed_units" not in summary["parameters"]
-    assert summary["effects"]["brake_unit_failure"] == {
-        "sets": 1,
-        "all_covered": 1,
-        "spanning_range": 0,
-        "not_expressed": 0,
-    }
+    assert summary["effects"]["brake_unit_failure"] == effect_counts(1, 1)
 
 
 def test_an_interval_over_the_whole_search_range_is_counted_apart_and_not_as_covered(bench):
@@ -80,7 +88,42 @@ def test_an_interval_over_the_whole_search_range_is_counted_apart_and_not_as_cov
     summary = bench.summarize(rows)
     onset = summary["parameters"]["thermal_fade.onset_C"]
     assert onset["covered_ci95"] == 2 and onset["spans_search_range"] == 1
-    assert summary["effects"]["thermal_fade"] == {"sets": 2, "all_covered": 1, "spanning_range": 1, "not_expressed": 0}
+    assert summary["effects"]["thermal_fade"] == effect_counts(2, 1, spanning_range=1)
+
+
+def test_parameters_resting_on_one_recording_are_counted_apart(bench):
+    """A fade only one stop reaches has a jackknife interval stepped to one bound (80-510 degC):
+    it holds the truth without spanning the range, and is counted as resting on one recording;
+    rows written before the report had the key are counted as not recorded, not as resting."""
+    onset_wide = {"onset_C": [80.0, 510.0], "loss_per_100K": [0.1, 0.5]}
+    rows = [
+        row(
+            "thermal_fade",
+            {"onset_C": 199.1, "loss_per_100K": 0.3},
+            {"onset_C": 220.0, "loss_per_100K": 0.28},
+            onset_wide,
+            resting=("loss_per_100K", "onset_C"),
+        ),
+        row(
+            "thermal_fade",
+            {"onset_C": 199.1, "loss_per_100K": 0.05},
+            {"onset_C": 220.0, "loss_per_100K": 0.28},
+            onset_wide,
+            resting=("onset_C",),
+        ),
+        row(
+            "thermal_fade",
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": 200.0, "loss_per_100K": 0.1},
+            {"onset_C": [190.0, 210.0], "loss_per_100K": [0.05, 0.15]},
+        ),
+    ]
+    del rows[2]["resting_on_one_recording"]
+    summary = bench.summarize(rows)
+    onset, loss = summary["parameters"]["thermal_fade.onset_C"], summary["parameters"]["thermal_fade.loss_per_100K"]
+    assert onset["rests_on_one_recording"] == 2 and loss["rests_on_one_recording"] == 1
+    assert onset["covered_ci95"] == 3 and onset["spans_search_range"] == 0
+    assert summary["effects"]["thermal_fade"] == effect_counts(3, 2, resting=2, covered_resting=1, not_recorded=1)
 
 
 def test_the_exact_binomial_interval_of_a_coverage(bench):
