@@ -110,9 +110,23 @@ def test_a_fade_that_one_stop_reaches_is_reported_as_resting_on_that_stop(tmp_pa
     # on: the report says which stop it rests on, and its interval is what the others allow.
     result = synthesize(tmp_path / "set", 8, seed=800104, effects=[EffectRequest("thermal_fade")])
     truth = result.key["effects"][0]["parameters"]
-    report = Diagnoser(result.recordings).fit_effects(["thermal_fade"]).report
+    diagnoser = Diagnoser(result.recordings)
+    candidate = diagnoser.fit_effects(["thermal_fade"])
+    report = candidate.report
     hottest = max(result.recordings, key=lambda r: np.nanmax(r.channel(DISC_TEMPERATURE)))
     assert report["resting_on_one_recording"] == {name: hottest.name for name in truth}
     for name, value in truth.items():
         low, high = report["ci95"][name]
         assert low <= value <= high, (name, value, report["ci95"])
+    # Without that stop nothing says the fade is there: it is predicted with the fade absent,
+    # which is the unmodified model's fit of it (the others' bounded refit stepped the onset to a
+    # bound, a prediction a hundred times worse).
+    i = result.recordings.index(hottest)
+    held = candidate.heldout.held_at_no_effect
+    loss = [parameter.name for parameter in candidate.fit.free].index("loss_per_100K")
+    assert held[i, loss] and held.sum() == 1, held  # the loss; the onset only places the fade
+    assert report["heldout_at_no_effect"] == {"loss_per_100K": [hottest.name]}
+    rows = diagnoser.problem.recording_of == i
+    predicted = float(np.sum(candidate.heldout.residual[rows] ** 2))
+    unmodified = float(np.sum(diagnoser.unmodified_fit().residual[rows] ** 2))
+    assert predicted == unmodified

@@ -4,6 +4,26 @@ parameters on the others, and predict the recording left out.
 The refit is one weighted Gauss-Newton step from the fit to every recording, kept inside the
 parameter bounds; the recording left out is then simulated with those parameters, its own
 nuisance refitted by chord iterations as in screening.
+
+A size that rests on the recording left out (the others hold less than ``min_others_share`` of its
+information) and that the others do not see (from their data alone it would not stand ``unseen_z``
+standard errors from its no-effect value, the parameters that place the effect held: the loss of a
+thermal fade that only the hottest stop reaches, the gradient of a section inside one stop's reach)
+cannot be refitted without that recording: the others' optimum is arbitrary along it, and a bounded
+step there lands anywhere in the search range, with a prediction far worse than no effect at all.
+Without that recording nothing says the effect is there, so the recording is predicted with that
+size at its no-effect value (the other parameters refitted with it held there, the recording's
+nuisance refitted from the unmodified model's), and the effect gains nothing on it. Where that
+leaves the candidate absent from the recording (every size held, a placing parameter irrelevant
+then), the prediction is the unmodified model's fit of the recording itself: a few chord iterations
+from there with the candidate's nuisance Jacobian moved it off that optimum, a spurious loss. The
+placing parameters (``ParameterSpec.locates``: a section's end, a fade's onset) are held in the
+second test because the others may see an effect whose place they cannot tell apart from its size:
+stops just above a fade's onset see the fade, but not its onset apart from its loss. Such
+parameters keep the others' step; their no-effect values would remove an effect the others show.
+Both tests are asked: one very hot stop can hold nine tenths of a fade's information while the next
+hottest alone measures its loss to a few percent, and an effect spread evenly over the recordings
+(a friction level) rests on none of them, however weak.
 """
 
 from __future__ import annotations
@@ -13,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from ..effects import EFFECTS
 from ..statistics import conditional_information
 from .fitting import FitProblem, FitResult
 from .weighting import Weighting
@@ -24,25 +45,98 @@ class HeldOut:
 
     residual: np.ndarray  # every row predicted with the effect fitted without its recording
     sse: np.ndarray  # per recording, effective (its friction-factor prior row included)
-    steps: np.ndarray  # (recordings, effect parameters): each recording's leave-out change
+    # (recordings, effect parameters): each recording's leave-out change, every parameter refitted
+    # on the others (the jackknife's steps)
+    steps: np.ndarray
     # (recordings, effect parameters): the share of each effect parameter's information (the other
     # effect parameters free, every recording's nuisance projected out) that the other recordings
     # hold; near 0 where one recording holds the parameter alone
     others_share: np.ndarray
+    # (recordings, effect parameters): held at the no-effect value in the recording's prediction,
+    # a size resting on the recording that the others do not see
+    held_at_no_effect: np.ndarray
 
 
-def held_out(problem: FitProblem, weighting: Weighting, fit: FitResult, chord_iterations: int) -> HeldOut:
-    """Each recording predicted with the effect parameters fitted without it."""
+def held_out(
+    problem: FitProblem,
+    weighting: Weighting,
+    fit: FitResult,
+    chord_iterations: int,
+    min_others_share: float,
+    unseen_z: float,
+    reference: FitResult | None = None,
+) -> HeldOut:
+    """Each recording predicted with the effect parameters fitted without it; with ``reference``
+    (the unmodified model's fit), a recording with a size held at no effect starts its nuisance
+    refit from the reference's, and one where the candidate is then absent is the reference's
+    residual (without ``reference``, no size is held)."""
     p = len(fit.free)
     steps = np.zeros((problem.n, p))
     others_share = np.ones((problem.n, p))
+    at_no_effect = np.zeros((problem.n, p), dtype=bool)
     held = fit.residual.copy()
     if p:
         blocks, information = _projected_information(problem, weighting, fit)
-        steps = _leave_one_out_steps(problem, fit, blocks, information)
+        steps = _leave_one_out_steps(problem, fit, blocks, information, at_no_effect)
         others_share = _others_share(information)
-        held = _simulated(problem, fit, steps, chord_iterations)
-    return HeldOut(held, weighting.recording_sse(held), steps, others_share)
+        no_effect = _no_effect_values(problem, fit)
+        if reference is not None:
+            unseen = _unseen_sizes(problem, fit, information, no_effect, unseen_z)
+            at_no_effect = (others_share < min_others_share) & unseen
+        lower, upper = problem.bounds(fit.free)
+        points = np.tile(fit.x, (problem.n, 1))
+        points[:, :p] = np.clip(fit.x[:p] + steps, lower[:p], upper[:p])
+        if at_no_effect.any():
+            others_steps = _leave_one_out_steps(problem, fit, blocks, information, at_no_effect, no_effect)
+            others_fit = np.clip(fit.x[:p] + others_steps, lower[:p], upper[:p])
+            points[:, :p] = np.where(at_no_effect, no_effect, others_fit)
+            points[at_no_effect.any(axis=1), p:] = reference.x[len(reference.free) :]
+        held = _simulated(problem, fit, points, chord_iterations)
+        for i in np.flatnonzero(_absent(problem, fit, at_no_effect)):
+            rows = problem.recording_of == i
+            held[rows] = reference.residual[rows]
+    return HeldOut(held, weighting.recording_sse(held), steps, others_share, at_no_effect)
+
+
+def _absent(problem: FitProblem, fit: FitResult, at_no_effect: np.ndarray) -> np.ndarray:
+    """(recordings,): whether the candidate is absent from each recording's prediction: every
+    size held at its no-effect value (a placing parameter says nothing then) and every integer
+    parameter at its no-effect value (a failed unit stays failed)."""
+    vehicle = problem.recordings[0].vehicle
+    absent_values = {
+        name: value for eid in fit.effect_ids for name, value in EFFECTS[eid].no_effect_values(vehicle).items()
+    }
+    if any(value != absent_values[name] for name, value in fit.fixed.items()):
+        return np.zeros(problem.n, dtype=bool)
+    locates = np.array([parameter.spec.locates for parameter in fit.free], dtype=bool)
+    return np.all(at_no_effect | locates, axis=1) & at_no_effect.any(axis=1)
+
+
+def _unseen_sizes(
+    problem: FitProblem, fit: FitResult, information: list[np.ndarray], no_effect: np.ndarray, unseen_z: float
+) -> np.ndarray:
+    """(recordings, effect parameters): the sizes that the other recordings alone would not tell
+    from their no-effect values by ``unseen_z`` standard errors, the placing parameters held and
+    the other sizes free (the distance to a no-effect value beyond the bounds counted to the
+    bound)."""
+    sizes = np.flatnonzero([not parameter.spec.locates for parameter in fit.free])
+    unseen = np.zeros((problem.n, len(fit.free)), dtype=bool)
+    if sizes.size == 0:
+        return unseen
+    lower, upper = problem.bounds(fit.free)
+    theta = fit.x[sizes]
+    distance = np.abs(theta - np.clip(no_effect[sizes], lower[sizes], upper[sizes]))
+    for i, others in enumerate(_others_information([own[np.ix_(sizes, sizes)] for own in information])):
+        unseen[i, sizes] = distance * np.sqrt(np.maximum(others, 0.0)) < unseen_z
+    return unseen
+
+
+def _no_effect_values(problem: FitProblem, fit: FitResult) -> np.ndarray:
+    """The value at which each effect parameter of ``fit`` is absent (may lie outside its bounds:
+    an adhesion limit is absent at infinite adhesion)."""
+    vehicle = problem.recordings[0].vehicle
+    absent = {eid: EFFECTS[eid].no_effect_values(vehicle) for eid in fit.effect_ids}
+    return np.array([absent[parameter.effect_id][parameter.name] for parameter in fit.free])
 
 
 def _projected_information(
@@ -69,52 +163,70 @@ def _leave_one_out_steps(
     fit: FitResult,
     blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     information: list[np.ndarray],
+    held: np.ndarray,
+    held_at: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per recording, the change of the effect parameters when it is left out: one weighted
-    Gauss-Newton step of the others' data, each recording's nuisance projected out, bounded."""
+    Gauss-Newton step of the others' data, each recording's nuisance projected out, bounded. The
+    parameters ``held`` (recordings, effect parameters) for that recording do not step; with
+    ``held_at`` (per effect parameter) the others' step is the one with them moved there (to the
+    nearer bound beyond the bounds), else with them where they are."""
     p = len(fit.free)
     r = fit.residual
     total = np.sum(information, axis=0)
     lower, upper = problem.bounds(fit.free)
     theta = fit.x[:p]
+    held_step = np.zeros(p) if held_at is None else np.clip(held_at, lower[:p], upper[:p]) - theta
     steps = np.zeros((problem.n, p))
     for i, (rows, a, w) in enumerate(blocks):
-        others = total - information[i] + 1e-9 * np.eye(p)
-        pull = a.T @ (w * r[rows])
+        free, fixed = np.flatnonzero(~held[i]), np.flatnonzero(held[i])
+        if free.size == 0:
+            continue
+        others = total - information[i]
+        pull = (a.T @ (w * r[rows]))[free]
+        if fixed.size:
+            pull = pull - others[np.ix_(free, fixed)] @ held_step[fixed]
+        others = others[np.ix_(free, free)] + 1e-9 * np.eye(free.size)
         # The others' optimum inside the parameter bounds (the quadratic s'Os - 2 s'g as a bounded
         # least-squares problem through O = L L'). Unbounded, a recording that holds most of an
         # effect's evidence leaves the others' matrix nearly singular: the hottest stop of a
         # thermal fade, left out, can step the loss tenfold and its prediction go wild.
         cholesky = np.linalg.cholesky(others)
         solution = optimize.lsq_linear(
-            cholesky.T, np.linalg.solve(cholesky, pull), bounds=(lower[:p] - theta, upper[:p] - theta), method="bvls"
+            cholesky.T,
+            np.linalg.solve(cholesky, pull),
+            bounds=(lower[free] - theta[free], upper[free] - theta[free]),
+            method="bvls",
         )
-        steps[i] = solution.x
+        steps[i, free] = solution.x
     return steps
+
+
+def _others_information(information: list[np.ndarray]) -> list[np.ndarray]:
+    """Per recording, the information the other recordings hold on each parameter, the other
+    parameters free."""
+    summed = np.sum(information, axis=0)
+    return [conditional_information(summed - own) for own in information]
 
 
 def _others_share(information: list[np.ndarray]) -> np.ndarray:
     """Per recording and effect parameter, the share of the parameter's information that the
     other recordings hold (1 for a parameter no recording informs)."""
-    summed = np.sum(information, axis=0)
-    total = conditional_information(summed)
+    total = conditional_information(np.sum(information, axis=0))
     shares = np.ones((len(information), total.size))
     informed = total > 0
-    for i, own in enumerate(information):
-        others = conditional_information(summed - own)
+    for i, others in enumerate(_others_information(information)):
         shares[i, informed] = np.minimum(others[informed] / total[informed], 1.0)
     return shares
 
 
-def _simulated(problem: FitProblem, fit: FitResult, steps: np.ndarray, chord_iterations: int) -> np.ndarray:
-    """Each recording simulated with its leave-one-out effect parameters, its own nuisance refitted
-    by chord iterations. The linear prediction ``r + a step`` is not enough: a recording that holds
-    most of an effect's evidence, left out, moves the parameters far (a thermal fade's onset by
-    tens of kelvin), beyond the range where the prediction is linear."""
+def _simulated(problem: FitProblem, fit: FitResult, points: np.ndarray, chord_iterations: int) -> np.ndarray:
+    """Each recording simulated at its leave-one-out point (a row of ``points``: effect parameters,
+    then nuisance), its own nuisance refitted by chord iterations. The linear prediction ``r + a
+    step`` is not enough: a recording that holds most of an effect's evidence, left out, moves the
+    parameters far (a thermal fade's onset by tens of kelvin), beyond the range where the
+    prediction is linear."""
     p = len(fit.free)
-    lower, upper = problem.bounds(fit.free)
-    points = np.tile(fit.x, (problem.n, 1))
-    points[:, :p] = np.clip(points[:, :p] + steps, lower[:p], upper[:p])
     profile = problem.profiler(fit.jacobian[:, p:])
     projected, _ = problem.chord_refit(fit.effect_ids, fit.fixed, fit.free, points, profile, chord_iterations)
     held = fit.residual.copy()

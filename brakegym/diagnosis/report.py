@@ -83,6 +83,16 @@ def resting_on_one_recording(
     return out
 
 
+def heldout_at_no_effect(problem: FitProblem, fit: FitResult, heldout: HeldOut) -> dict[str, list[str]]:
+    """Each size held at its no-effect value in some recording's held-out prediction (it rests on
+    that recording and the others do not see it), with those recordings' names."""
+    return {
+        parameter.name: [problem.recordings[i].name for i in np.flatnonzero(heldout.held_at_no_effect[:, j])]
+        for j, parameter in enumerate(fit.free)
+        if heldout.held_at_no_effect[:, j].any()
+    }
+
+
 def stop_errors(fit: FitResult) -> dict[str, float]:
     """RMS and largest stop-distance error of a fit's replays, m."""
     errors = [compare(r).stop_distance_error_m for r in fit.replays]
@@ -116,6 +126,7 @@ def candidate_entries(
                 "resting_on_one_recording": resting_on_one_recording(
                     problem, fit, candidate.heldout, rules.one_recording_share
                 ),
+                "heldout_at_no_effect": heldout_at_no_effect(problem, fit, candidate.heldout),
                 "rms_before": base_rms,
                 "rms_after": weighting.rms(fit.residual),
                 "heldout_rms_before": base_rms,

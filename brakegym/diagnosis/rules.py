@@ -52,6 +52,11 @@ class DiagnosisRules:
     heldout_acts_share: float = 0.10
     #: the paired t needs at least this many recordings acted on
     heldout_min_recordings: int = 2
+    #: a size resting on one recording (``one_recording_share``) that the other recordings alone
+    #: would not tell from its no-effect value by this many standard errors is held at that value
+    #: in that recording's held-out prediction (:mod:`.heldout`: without it nothing says the
+    #: effect is there)
+    heldout_unseen_z: float = 2.0
     #: a candidate fitted within this share of a parameter's range (of its logarithm on a log
     #: grid) of a bound that is not physical is not selected: the data want the effect beyond the
     #: sizes the library gives it (:meth:`brakegym.effects.ParameterSpec.at_range_end`)
@@ -131,7 +136,8 @@ class DiagnosisRules:
     #: each refits the selected model once, so the cost grows linearly; below 3, no bootstrap
     bootstrap_replicates: int = 12
     #: a parameter whose information the other recordings hold less than this share of, with
-    #: one recording left out, rests on that recording alone (reported, ``resting_on_one_recording``)
+    #: one recording left out, rests on that recording alone (reported, ``resting_on_one_recording``;
+    #: see also ``heldout_unseen_z``)
     one_recording_share: float = 0.1
     #: the scatter set-up (``configs/setups``) the bootstrap draws each application's friction and
     #: running resistance from, ASSUMED to be the one ``brakegym synth`` writes its sets with

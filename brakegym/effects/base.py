@@ -50,6 +50,11 @@ class ParameterSpec:
     fit's trust region shrinks and the fit crawls along its valley. Such a parameter (a fade's
     onset, a wet pad's drying energy) takes a step of 1 % instead of the default 0.1 %; see the
     coverage measurements in the diagnosis docs.
+    ``locates``: the parameter says where or when the effect acts (a section's start and length, a
+    fade's onset, the energy over which wet pads dry), not how large it is; the diagnosis's
+    held-out prediction does not hold such a parameter at its no-effect value where the other
+    recordings do not inform it (:mod:`brakegym.diagnosis.heldout`), since that value alone does
+    not say the effect is absent where they show it.
     """
 
     name: str
@@ -64,6 +69,7 @@ class ParameterSpec:
     lower_is_physical: bool = False
     upper_is_physical: bool = False
     difference_step: float = 1e-3
+    locates: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 < self.difference_step < 0.5:

@@ -84,6 +84,7 @@ class WetPads(Effect):
             description="heat into one disc that dries it by a factor e",
             log_grid=True,
             difference_step=1e-2,
+            locates=True,
         ),
     )
     RELEVANT_LOSS = 0.08
@@ -118,7 +119,7 @@ class ThermalFade(Effect):
 
     id = "thermal_fade"
     parameters = (
-        ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),), difference_step=1e-2),
+        ParameterSpec("onset_C", "degC", 80.0, 600.0, None, ((120.0, 250.0),), difference_step=1e-2, locates=True),
         ParameterSpec("loss_per_100K", "", 0.0, 0.6, 0.0, ((0.1, 0.4),), lower_is_physical=True),
     )
     # The share of mu a fade must take at the hottest friction surface reached, as large as a
@@ -219,8 +220,11 @@ class AdhesionSection(Effect):
             ((100.0, 400.0),),
             description="where the stretch begins",
             lower_is_physical=True,  # the recordings begin on it
+            locates=True,
         ),
-        ParameterSpec("patch_length_m", "m", 50.0, 2500.0, 0.0, ((150.0, 500.0),), description="how long it is"),
+        ParameterSpec(
+            "patch_length_m", "m", 50.0, 2500.0, 0.0, ((150.0, 500.0),), description="how long it is", locates=True
+        ),
         ParameterSpec("patch_adhesion", "", 0.02, 0.5, math.inf, ((0.05, 0.09),)),
     )
     order = AdhesionLimit.order + 1  # it sees the whole line's cap, if any

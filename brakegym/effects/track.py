@@ -76,8 +76,11 @@ class GradientSection(Effect):
             ((100.0, 400.0),),
             description="where the section begins",
             lower_is_physical=True,  # the recordings begin on it
+            locates=True,
         ),
-        ParameterSpec("section_length_m", "m", 50.0, 2500.0, 0.0, ((250.0, 600.0),), description="how long it is"),
+        ParameterSpec(
+            "section_length_m", "m", 50.0, 2500.0, 0.0, ((250.0, 600.0),), description="how long it is", locates=True
+        ),
         ParameterSpec(
             "section_gradient_permil",
             "permil",
@@ -144,6 +147,7 @@ class GradientSections(Effect):
             ranges,
             description=f"{spec.description} ({which} section)",
             lower_is_physical=spec.lower_is_physical,
+            locates=spec.locates,
         )
         for which, section_ranges in (
             ("first", (((100.0, 300.0),), ((200.0, 400.0),), ((-15.0, -4.0), (4.0, 15.0)))),
