@@ -89,6 +89,8 @@ CANDIDATE_KEYS = (
     "heldout_acts_on",
     "heldout_gain_per_recording",
     "friction_level_shift",
+    "heldout_at_no_effect",
+    "resting_on_one_recording",
 )
 
 
