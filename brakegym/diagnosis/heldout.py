@@ -102,11 +102,10 @@ def _absent(problem: FitProblem, fit: FitResult, at_no_effect: np.ndarray) -> np
     """(recordings,): whether the candidate is absent from each recording's prediction: every
     size held at its no-effect value (a placing parameter says nothing then) and every integer
     parameter at its no-effect value (a failed unit stays failed)."""
-    vehicle = problem.recordings[0].vehicle
-    absent_values = {
-        name: value for eid in fit.effect_ids for name, value in EFFECTS[eid].no_effect_values(vehicle).items()
-    }
-    if any(value != absent_values[name] for name, value in fit.fixed.items()):
+    absent = _no_effect_by_effect(problem, fit)
+    if any(
+        value != absent[eid][name] for eid in fit.effect_ids for name, value in fit.fixed.items() if name in absent[eid]
+    ):
         return np.zeros(problem.n, dtype=bool)
     locates = np.array([parameter.spec.locates for parameter in fit.free], dtype=bool)
     return np.all(at_no_effect | locates, axis=1) & at_no_effect.any(axis=1)
@@ -134,9 +133,14 @@ def _unseen_sizes(
 def _no_effect_values(problem: FitProblem, fit: FitResult) -> np.ndarray:
     """The value at which each effect parameter of ``fit`` is absent (may lie outside its bounds:
     an adhesion limit is absent at infinite adhesion)."""
-    vehicle = problem.recordings[0].vehicle
-    absent = {eid: EFFECTS[eid].no_effect_values(vehicle) for eid in fit.effect_ids}
+    absent = _no_effect_by_effect(problem, fit)
     return np.array([absent[parameter.effect_id][parameter.name] for parameter in fit.free])
+
+
+def _no_effect_by_effect(problem: FitProblem, fit: FitResult) -> dict[str, dict[str, float]]:
+    """Per effect of ``fit``, the value at which each of its parameters is absent."""
+    vehicle = problem.recordings[0].vehicle
+    return {eid: EFFECTS[eid].no_effect_values(vehicle) for eid in fit.effect_ids}
 
 
 def _projected_information(
