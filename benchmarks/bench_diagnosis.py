@@ -91,6 +91,7 @@ CANDIDATE_KEYS = (
     "friction_level_shift",
     "heldout_at_no_effect",
     "resting_on_one_recording",
+    "heldout_refitted",
 )
 
 

@@ -4,7 +4,9 @@ model is (parameters, the Gauss-Newton/jackknife interval, the bootstrap's, thei
 The thresholds were fixed before the test first ran: started from its screening or at half the
 true gradient, the fit lands within 15 % of it, and the reported interval holds it and both intervals it is made of.
 A thermal fade that one stop of eight reaches (coverage set 800104 of ``benchmarks/bench_coverage.py``)
-is reported as resting on that stop, the hottest, and its interval holds it.
+is reported as resting on that stop, the hottest, and its interval holds it. On a concealed profile
+of two sections, the one stop that brakes into the second is predicted better held out than by
+the unmodified model.
 """
 
 import numpy as np
@@ -15,6 +17,7 @@ from brakegym.diagnosis import Diagnoser, DiagnosisRules
 from brakegym.diagnosis.fitting import FitProblem
 from brakegym.effects import GradientSection
 from brakegym.recordings.columns import DISC_TEMPERATURE
+from brakegym.recordings.metadata import GradientProfile
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -130,3 +133,30 @@ def test_a_fade_that_one_stop_reaches_is_reported_as_resting_on_that_stop(tmp_pa
     predicted = float(np.sum(candidate.heldout.residual[rows] ** 2))
     unmodified = float(np.sum(diagnoser.unmodified_fit().residual[rows] ** 2))
     assert predicted == unmodified
+
+
+def test_a_profiles_section_that_one_stop_brakes_into_is_predicted_better_than_without_it(tmp_path):
+    # A concealed profile (level, 8 permil up over 200-500 m, level, 9 permil down from 700 m):
+    # one stop of eight brakes into the second section. Left out, the others' step on their own
+    # gradient predicts it better than the unmodified model does; a step on the stop's gradient
+    # turned round (the set's gradient taken as zero, which it is not) ran the second section's
+    # gradient towards its bound and predicted that stop 4.3 times worse than without the profile.
+    profile = GradientProfile(start_m=[0.0, 200.0, 500.0, 700.0], gradient_permil=[0.0, 8.0, 0.0, -9.0])
+    result = synthesize(tmp_path / "set", 8, seed=5, gradient_profile=profile, declare_gradient_profile=False)
+    diagnoser = Diagnoser(result.recordings, rules=DiagnosisRules(bootstrap_replicates=0))
+    start = {
+        "first_section_start_m": 200.0,
+        "first_section_length_m": 300.0,
+        "first_section_gradient_permil": 8.0,
+        "second_section_start_m": 700.0,
+        "second_section_length_m": 1000.0,
+        "second_section_gradient_permil": -9.0,
+    }
+    candidate = diagnoser.fit_effects(["gradient_sections"], start=start)
+    second = [parameter.name for parameter in candidate.fit.free].index("second_section_gradient_permil")
+    stop = int(np.argmin(candidate.heldout.others_share[:, second]))
+    assert candidate.heldout.others_share[stop, second] < 0.1  # the one stop that brakes into it
+    problem = diagnoser.problem
+    unmodified = diagnoser.unmodified_fit().residual
+    rows = problem.recording_of == stop
+    assert np.sum(candidate.heldout.residual[rows] ** 2) < np.sum(unmodified[rows] ** 2)

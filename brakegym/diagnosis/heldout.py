@@ -1,9 +1,15 @@
 """Judging on recordings held out of the fit: leave one recording out, refit the effect's
 parameters on the others, and predict the recording left out.
 
-The refit is one weighted Gauss-Newton step from the fit to every recording, kept inside the
-parameter bounds; the recording left out is then simulated with those parameters, its own
-nuisance refitted by chord iterations as in screening.
+The refit is one weighted Gauss-Newton step of the others' data from the fit to every recording,
+kept inside the parameter bounds; the recording left out is then simulated with those parameters,
+its own nuisance refitted by chord iterations as in screening. The same simulation gives the
+others' chi^2 at the stepped point; where it fell by much less than the step's quadratic model
+promised (the trust-region test of a Gauss-Newton step), the step left the range where it is
+linear, and the others are fitted in full instead, from the fit to every recording; the recording
+left out is then predicted from their optimum (its own nuisance refitted to convergence). Only
+the others' data trigger that fit: a trigger on the left-out recording's own prediction (refit
+where it came out worse than no effect) would bias the held-out gains upwards.
 
 A size that rests on the recording left out (the others hold less than ``min_others_share`` of its
 information) and that the others do not see (from their data alone it would not stand ``unseen_z``
@@ -36,6 +42,7 @@ from scipy import optimize
 from ..effects import EFFECTS
 from ..statistics import conditional_information
 from .fitting import FitProblem, FitResult
+from .rules import DiagnosisRules
 from .weighting import Weighting
 
 
@@ -55,25 +62,29 @@ class HeldOut:
     # (recordings, effect parameters): held at the no-effect value in the recording's prediction,
     # a size resting on the recording that the others do not see
     held_at_no_effect: np.ndarray
+    # (recordings,): predicted from a full fit to the others, their one step having left its
+    # linear range
+    refitted: np.ndarray
 
 
 def held_out(
     problem: FitProblem,
     weighting: Weighting,
     fit: FitResult,
-    chord_iterations: int,
-    min_others_share: float,
-    unseen_z: float,
+    rules: DiagnosisRules,
     reference: FitResult | None = None,
 ) -> HeldOut:
     """Each recording predicted with the effect parameters fitted without it; with ``reference``
     (the unmodified model's fit), a recording with a size held at no effect starts its nuisance
-    refit from the reference's, and one where the candidate is then absent is the reference's
-    residual (without ``reference``, no size is held)."""
+    refit from the reference's, one where the candidate is then absent is the reference's
+    residual, and one whose others' step left the range where it is linear is predicted from a
+    fit of the others (without ``reference``, neither: the unmodified model's own held-out
+    error)."""
     p = len(fit.free)
     steps = np.zeros((problem.n, p))
     others_share = np.ones((problem.n, p))
     at_no_effect = np.zeros((problem.n, p), dtype=bool)
+    refitted = np.zeros(problem.n, dtype=bool)
     held = fit.residual.copy()
     if p:
         blocks, information = _projected_information(problem, weighting, fit)
@@ -81,8 +92,8 @@ def held_out(
         others_share = _others_share(information)
         no_effect = _no_effect_values(problem, fit)
         if reference is not None:
-            unseen = _unseen_sizes(problem, fit, information, no_effect, unseen_z)
-            at_no_effect = (others_share < min_others_share) & unseen
+            unseen = _unseen_sizes(problem, fit, information, no_effect, rules.heldout_unseen_z)
+            at_no_effect = (others_share < rules.one_recording_share) & unseen
         lower, upper = problem.bounds(fit.free)
         points = np.tile(fit.x, (problem.n, 1))
         points[:, :p] = np.clip(fit.x[:p] + steps, lower[:p], upper[:p])
@@ -91,11 +102,77 @@ def held_out(
             others_fit = np.clip(fit.x[:p] + others_steps, lower[:p], upper[:p])
             points[:, :p] = np.where(at_no_effect, no_effect, others_fit)
             points[at_no_effect.any(axis=1), p:] = reference.x[len(reference.free) :]
-        held = _simulated(problem, fit, points, chord_iterations)
+        simulated = _simulated(problem, fit, points, rules.screen_chord_iterations)
+        for i in range(problem.n):
+            rows = problem.recording_of == i
+            held[rows] = simulated[i][rows]
         for i in np.flatnonzero(_absent(problem, fit, at_no_effect)):
             rows = problem.recording_of == i
             held[rows] = reference.residual[rows]
-    return HeldOut(held, weighting.recording_sse(held), steps, others_share, at_no_effect)
+        if reference is not None:
+            refitted = ~at_no_effect.any(axis=1) & _beyond_linear_range(
+                weighting, fit, blocks, information, points[:, :p] - fit.x[:p], simulated, rules
+            )
+            for i in np.flatnonzero(refitted):
+                rows = problem.recording_of == i
+                held[rows] = _predicted_from_others_fit(problem, fit, i, rules.fit_iterations)
+    return HeldOut(held, weighting.recording_sse(held), steps, others_share, at_no_effect, refitted)
+
+
+def _beyond_linear_range(
+    weighting: Weighting,
+    fit: FitResult,
+    blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    information: list[np.ndarray],
+    steps: np.ndarray,
+    simulated: np.ndarray,
+    rules: DiagnosisRules,
+) -> np.ndarray:
+    """(recordings,): whether the others' step for each recording left out left the range where
+    their chi^2 is quadratic: the others' own effective chi^2 at the stepped point (simulated,
+    their nuisance refitted by chord iterations) fell by less than ``heldout_linear_min_ratio`` of
+    what the quadratic model of the step promised, and stands more than
+    ``heldout_linear_chi2_slack`` above that model (the trust-region test of a Gauss-Newton step).
+    Only the others' data decide: the recording left out, predicted, says nothing here."""
+    r = fit.residual
+    own_chi2 = np.array([np.sum(w * r[rows] ** 2) for rows, _, w in blocks])
+    own_gradient = _gradients(fit, blocks)
+    total_information, total_gradient = np.sum(information, axis=0), np.sum(own_gradient, axis=0)
+    beyond = np.zeros(len(blocks), dtype=bool)
+    for i, (rows, _, _) in enumerate(blocks):
+        step = steps[i]
+        at_fit = own_chi2.sum() - own_chi2[i]
+        quadratic = (
+            at_fit
+            + 2.0 * step @ (total_gradient - own_gradient[i])
+            + step @ (total_information - information[i]) @ step
+        )
+        stepped = weighting.chi2(simulated[i]) - float(np.sum(weighting.weights[rows] * simulated[i][rows] ** 2))
+        beyond[i] = (
+            stepped - quadratic > rules.heldout_linear_chi2_slack
+            and at_fit - stepped < rules.heldout_linear_min_ratio * (at_fit - quadratic)
+        )
+    return beyond
+
+
+def _predicted_from_others_fit(problem: FitProblem, fit: FitResult, left_out: int, fit_iterations: int) -> np.ndarray:
+    """The rows of recording ``left_out`` predicted with the effect parameters of a full fit to
+    the other recordings (started at ``fit``), its own nuisance refitted to convergence from
+    ``fit``'s: where the others' one Gauss-Newton step left its linear range, their own optimum
+    is the prediction the held-out rule means."""
+    n, p = problem.n, len(fit.free)
+    others = [j for j in range(n) if j != left_out]
+    nuisance = fit.x[p:].reshape(3, n)
+    others_problem = FitProblem([problem.recordings[j] for j in others], problem.noise)
+    start = np.concatenate([fit.x[:p], nuisance[:, others].reshape(-1)])
+    others_fit = others_problem.fit(list(fit.effect_ids), start, dict(fit.fixed), max_iterations=fit_iterations)
+    own_problem = FitProblem([problem.recordings[left_out]], problem.noise)
+    point = np.concatenate([others_fit.x[:p], nuisance[:, left_out]])
+    point = own_problem.refit_nuisance(fit.effect_ids, fit.fixed, fit.free, point)
+    residuals, _ = own_problem.simulate(fit.effect_ids, fit.fixed, fit.free, point[None])
+    problem.simulations += others_problem.simulations + own_problem.simulations
+    # The one recording's rows (data, then its prior row) are, in order, its rows in ``problem``.
+    return residuals[0]
 
 
 def _absent(problem: FitProblem, fit: FitResult, at_no_effect: np.ndarray) -> np.ndarray:
@@ -174,20 +251,28 @@ def _leave_one_out_steps(
     Gauss-Newton step of the others' data, each recording's nuisance projected out, bounded. The
     parameters ``held`` (recordings, effect parameters) for that recording do not step; with
     ``held_at`` (per effect parameter) the others' step is the one with them moved there (to the
-    nearer bound beyond the bounds), else with them where they are."""
+    nearer bound beyond the bounds), else with them where they are.
+
+    The step descends the others' own gradient, not the recording's gradient turned round: the
+    two are the same only where the whole set's weighted gradient vanishes, and it does not. The
+    fit minimises the unweighted chi^2, in a bounded number of iterations, and the effective
+    sample weights differ by channel; on a concealed profile the set's gradient was larger than
+    any one recording's, and a step on the recording's alone raised the others' effective chi^2
+    by 50 to 500 for every recording left out."""
     p = len(fit.free)
-    r = fit.residual
     total = np.sum(information, axis=0)
+    gradients = _gradients(fit, blocks)
+    total_gradient = np.sum(gradients, axis=0)
     lower, upper = problem.bounds(fit.free)
     theta = fit.x[:p]
     held_step = np.zeros(p) if held_at is None else np.clip(held_at, lower[:p], upper[:p]) - theta
     steps = np.zeros((problem.n, p))
-    for i, (rows, a, w) in enumerate(blocks):
+    for i in range(problem.n):
         free, fixed = np.flatnonzero(~held[i]), np.flatnonzero(held[i])
         if free.size == 0:
             continue
         others = total - information[i]
-        pull = (a.T @ (w * r[rows]))[free]
+        pull = -(total_gradient - gradients[i])[free]
         if fixed.size:
             pull = pull - others[np.ix_(free, fixed)] @ held_step[fixed]
         others = others[np.ix_(free, free)] + 1e-9 * np.eye(free.size)
@@ -204,6 +289,12 @@ def _leave_one_out_steps(
         )
         steps[i, free] = solution.x
     return steps
+
+
+def _gradients(fit: FitResult, blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    """Per recording, the gradient of its effective chi^2 over the effect parameters (half of
+    it), its nuisance projected out."""
+    return [a.T @ (w * fit.residual[rows]) for rows, a, w in blocks]
 
 
 def _others_information(information: list[np.ndarray]) -> list[np.ndarray]:
@@ -225,16 +316,13 @@ def _others_share(information: list[np.ndarray]) -> np.ndarray:
 
 
 def _simulated(problem: FitProblem, fit: FitResult, points: np.ndarray, chord_iterations: int) -> np.ndarray:
-    """Each recording simulated at its leave-one-out point (a row of ``points``: effect parameters,
-    then nuisance), its own nuisance refitted by chord iterations. The linear prediction ``r + a
-    step`` is not enough: a recording that holds most of an effect's evidence, left out, moves the
-    parameters far (a thermal fade's onset by tens of kelvin), beyond the range where the
-    prediction is linear."""
+    """(recordings, rows): every recording simulated at each leave-one-out point (a row of
+    ``points``: effect parameters, then nuisance), each nuisance refitted by chord iterations.
+    Row i's rows of recording i are its prediction; the others' rows are their own fit at that
+    point. The linear prediction ``r + a step`` is not enough: a recording that holds most of an
+    effect's evidence, left out, moves the parameters far (a thermal fade's onset by tens of
+    kelvin), beyond the range where the prediction is linear."""
     p = len(fit.free)
     profile = problem.profiler(fit.jacobian[:, p:])
     projected, _ = problem.chord_refit(fit.effect_ids, fit.fixed, fit.free, points, profile, chord_iterations)
-    held = fit.residual.copy()
-    for i in range(problem.n):
-        rows = problem.recording_of == i
-        held[rows] = projected[i][rows]
-    return held
+    return projected

@@ -177,28 +177,13 @@ class Judge:
         self.baseline = baseline
         self.chi2_base = weighting.chi2(baseline.residual)
         self.log_n = math.log(max(weighting.n_eff_total, 2.0))
-        self.base_sse = held_out(
-            problem,
-            weighting,
-            baseline,
-            rules.screen_chord_iterations,
-            rules.one_recording_share,
-            rules.heldout_unseen_z,
-        ).sse
+        self.base_sse = held_out(problem, weighting, baseline, rules).sse
 
     def candidate(self, effect_ids: tuple[str, ...], fit: FitResult) -> Candidate:
         """A fit judged: its BIC against the unmodified model, held-out error and relevance."""
         chi2 = self.weighting.chi2(fit.residual)
         n_parameters = len(fit.free) + len(fit.fixed)
-        heldout = held_out(
-            self.problem,
-            self.weighting,
-            fit,
-            self.rules.screen_chord_iterations,
-            self.rules.one_recording_share,
-            self.rules.heldout_unseen_z,
-            self.baseline,
-        )
+        heldout = held_out(self.problem, self.weighting, fit, self.rules, self.baseline)
         candidate = Candidate(effect_ids, fit, chi2, chi2 - self.chi2_base + n_parameters * self.log_n, heldout)
         surface = [np.nanmax(r.states["T_fric_C"]) for r in fit.replays if "T_fric_C" in r.states]
         evidence = dataclasses.replace(

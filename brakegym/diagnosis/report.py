@@ -127,6 +127,7 @@ def candidate_entries(
                     problem, fit, candidate.heldout, rules.one_recording_share
                 ),
                 "heldout_at_no_effect": heldout_at_no_effect(problem, fit, candidate.heldout),
+                "heldout_refitted": [problem.recordings[i].name for i in np.flatnonzero(candidate.heldout.refitted)],
                 "rms_before": base_rms,
                 "rms_after": weighting.rms(fit.residual),
                 "heldout_rms_before": base_rms,

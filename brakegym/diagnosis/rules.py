@@ -57,6 +57,12 @@ class DiagnosisRules:
     #: in that recording's held-out prediction (:mod:`.heldout`: without it nothing says the
     #: effect is there)
     heldout_unseen_z: float = 2.0
+    #: a recording left out is predicted from a full fit to the others (:mod:`.heldout`) where
+    #: their one Gauss-Newton step left its linear range: their effective chi^2 at the stepped
+    #: point fell by less than this share of what the step's quadratic model promised ...
+    heldout_linear_min_ratio: float = 0.25
+    #: ... and stands more than this above that model (below it, the two differ by noise)
+    heldout_linear_chi2_slack: float = 1.0
     #: a candidate fitted within this share of a parameter's range (of its logarithm on a log
     #: grid) of a bound that is not physical is not selected: the data want the effect beyond the
     #: sizes the library gives it (:meth:`brakegym.effects.ParameterSpec.at_range_end`)
