@@ -150,6 +150,8 @@ def test_the_command_line_takes_a_profile_and_refuses_a_bad_one(tmp_path, capsys
     assert "'150' is not START_M:PERMIL" in capsys.readouterr().err
 
 
+# An adhesion limit held at no effect sits at infinite adhesion: no arithmetic may meet it.
+@pytest.mark.filterwarnings("error::RuntimeWarning")
 def test_a_declared_profile_is_not_named_as_an_effect(tmp_path):
     """With scatter and noise, the line's known gradients are in the model: the diagnosis selects
     nothing on an effect-free set on the graded line."""

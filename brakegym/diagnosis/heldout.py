@@ -110,8 +110,9 @@ def held_out(
             rows = problem.recording_of == i
             held[rows] = reference.residual[rows]
         if reference is not None:
-            refitted = ~at_no_effect.any(axis=1) & _beyond_linear_range(
-                weighting, fit, blocks, information, points[:, :p] - fit.x[:p], simulated, rules
+            stepped = ~at_no_effect.any(axis=1)
+            refitted = _beyond_linear_range(
+                weighting, fit, blocks, information, points[:, :p] - fit.x[:p], simulated, stepped, rules
             )
             for i in np.flatnonzero(refitted):
                 rows = problem.recording_of == i
@@ -126,9 +127,11 @@ def _beyond_linear_range(
     information: list[np.ndarray],
     steps: np.ndarray,
     simulated: np.ndarray,
+    stepped: np.ndarray,
     rules: DiagnosisRules,
 ) -> np.ndarray:
-    """(recordings,): whether the others' step for each recording left out left the range where
+    """(recordings,): whether the others' step for each recording left out (those ``stepped``;
+    the others are False: a size held at no effect may sit at infinity) left the range where
     their chi^2 is quadratic: the others' own effective chi^2 at the stepped point (simulated,
     their nuisance refitted by chord iterations) fell by less than ``heldout_linear_min_ratio`` of
     what the quadratic model of the step promised, and stands more than
@@ -139,18 +142,18 @@ def _beyond_linear_range(
     own_gradient = _gradients(fit, blocks)
     total_information, total_gradient = np.sum(information, axis=0), np.sum(own_gradient, axis=0)
     beyond = np.zeros(len(blocks), dtype=bool)
-    for i, (rows, _, _) in enumerate(blocks):
-        step = steps[i]
+    for i in np.flatnonzero(stepped):
+        rows, step = blocks[i][0], steps[i]
         at_fit = own_chi2.sum() - own_chi2[i]
         quadratic = (
             at_fit
             + 2.0 * step @ (total_gradient - own_gradient[i])
             + step @ (total_information - information[i]) @ step
         )
-        stepped = weighting.chi2(simulated[i]) - float(np.sum(weighting.weights[rows] * simulated[i][rows] ** 2))
+        achieved = weighting.chi2(simulated[i]) - float(np.sum(weighting.weights[rows] * simulated[i][rows] ** 2))
         beyond[i] = (
-            stepped - quadratic > rules.heldout_linear_chi2_slack
-            and at_fit - stepped < rules.heldout_linear_min_ratio * (at_fit - quadratic)
+            achieved - quadratic > rules.heldout_linear_chi2_slack
+            and at_fit - achieved < rules.heldout_linear_min_ratio * (at_fit - quadratic)
         )
     return beyond
 
