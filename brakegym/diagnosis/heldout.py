@@ -102,7 +102,12 @@ def held_out(
             others_fit = np.clip(fit.x[:p] + others_steps, lower[:p], upper[:p])
             points[:, :p] = np.where(at_no_effect, no_effect, others_fit)
             points[at_no_effect.any(axis=1), p:] = reference.x[len(reference.free) :]
-        simulated = _simulated(problem, fit, points, rules.screen_chord_iterations)
+        if reference is None:
+            simulated = _simulated(problem, fit, points, rules.screen_chord_iterations)
+        else:
+            # The fit itself simulated as the steps are: the trust test compares like with like.
+            simulated = _simulated(problem, fit, np.vstack([points, fit.x]), rules.screen_chord_iterations)
+            simulated, at_fit = simulated[:-1], simulated[-1]
         for i in range(problem.n):
             rows = problem.recording_of == i
             held[rows] = simulated[i][rows]
@@ -112,7 +117,7 @@ def held_out(
         if reference is not None:
             stepped = ~at_no_effect.any(axis=1)
             refitted = _beyond_linear_range(
-                weighting, fit, blocks, information, points[:, :p] - fit.x[:p], simulated, stepped, rules
+                weighting, fit, blocks, information, points[:, :p] - fit.x[:p], (at_fit, simulated), stepped, rules
             )
             for i in np.flatnonzero(refitted):
                 rows = problem.recording_of == i
@@ -126,36 +131,46 @@ def _beyond_linear_range(
     blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
     information: list[np.ndarray],
     steps: np.ndarray,
-    simulated: np.ndarray,
+    simulated: tuple[np.ndarray, np.ndarray],
     stepped: np.ndarray,
     rules: DiagnosisRules,
 ) -> np.ndarray:
     """(recordings,): whether the others' step for each recording left out (those ``stepped``;
     the others are False: a size held at no effect may sit at infinity) left the range where
-    their chi^2 is quadratic: the others' own effective chi^2 at the stepped point (simulated,
-    their nuisance refitted by chord iterations) fell by less than ``heldout_linear_min_ratio`` of
-    what the quadratic model of the step promised, and stands more than
-    ``heldout_linear_chi2_slack`` above that model (the trust-region test of a Gauss-Newton step).
-    Only the others' data decide: the recording left out, predicted, says nothing here."""
-    r = fit.residual
-    own_chi2 = np.array([np.sum(w * r[rows] ** 2) for rows, _, w in blocks])
+    their chi^2 is quadratic: the others' own effective chi^2 at the stepped point fell by less
+    than ``heldout_linear_min_ratio`` of what the quadratic model of the step promised, and
+    stands more than ``heldout_linear_chi2_slack`` above that model (the trust-region test of a
+    Gauss-Newton step). Only the others' data decide: the recording left out, predicted, says
+    nothing here.
+
+    ``simulated``: the residuals at the fit and at each stepped point, every nuisance refitted by
+    the same chord iterations. The change is measured between the two: the chord refit's linear
+    nuisance step does not respect the bounds, and where a friction factor rests on its bound
+    the chord refit of the fit itself stands far above the fit's chi^2 (an adhesion limit: by
+    1300), which a test against the fit's own chi^2 took for a step beyond its linear range."""
+    at_fit_simulated, at_steps = simulated
     own_gradient = _gradients(fit, blocks)
     total_information, total_gradient = np.sum(information, axis=0), np.sum(own_gradient, axis=0)
     beyond = np.zeros(len(blocks), dtype=bool)
     for i in np.flatnonzero(stepped):
         rows, step = blocks[i][0], steps[i]
-        at_fit = own_chi2.sum() - own_chi2[i]
+        at_fit = _others_chi2(weighting, at_fit_simulated, rows)
         quadratic = (
             at_fit
             + 2.0 * step @ (total_gradient - own_gradient[i])
             + step @ (total_information - information[i]) @ step
         )
-        achieved = weighting.chi2(simulated[i]) - float(np.sum(weighting.weights[rows] * simulated[i][rows] ** 2))
+        achieved = _others_chi2(weighting, at_steps[i], rows)
         beyond[i] = (
             achieved - quadratic > rules.heldout_linear_chi2_slack
             and at_fit - achieved < rules.heldout_linear_min_ratio * (at_fit - quadratic)
         )
     return beyond
+
+
+def _others_chi2(weighting: Weighting, residual: np.ndarray, rows: np.ndarray) -> float:
+    """The effective chi^2 of ``residual`` without the recording whose ``rows`` these are."""
+    return weighting.chi2(residual) - float(np.sum(weighting.weights[rows] * residual[rows] ** 2))
 
 
 def _predicted_from_others_fit(problem: FitProblem, fit: FitResult, left_out: int, fit_iterations: int) -> np.ndarray:
