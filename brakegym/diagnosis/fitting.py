@@ -435,9 +435,15 @@ class FitProblem:
         iterations: int,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each point (rows: effect parameters, then nuisance) with its nuisance refitted by
-        ``iterations`` chord iterations: Gauss-Newton steps with the unmodified model's nuisance
-        Jacobian (``profile``), each followed by a simulation at the moved point. Returns the
-        residuals of the last simulation after its linear nuisance step, and the moved points.
+        ``iterations`` chord iterations: Gauss-Newton steps with a fixed nuisance Jacobian
+        (``profile``: the unmodified model's in the screening, the candidate's in the held-out
+        prediction), each followed by a simulation at the moved point. Returns the residuals of
+        the last simulation after its linear nuisance step, and the moved points.
+
+        The linear step is solved without the nuisance bounds and the point then clipped to
+        them: where a nuisance parameter rests on its bound, the returned residual is not the
+        moved point's, and the collinear columns have made up for the clipped one. Compare two
+        such residuals with each other, not with a fit's.
 
         One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
         gradient) needs a friction factor 8 % off, far outside the linear range of the samples
@@ -486,8 +492,8 @@ class FitProblem:
 
 
 class NuisanceProfile:
-    """Each recording's nuisance refitted by one linear least-squares step, with the nuisance
-    Jacobian of the unmodified fit (block diagonal: 3 columns per recording)."""
+    """Each recording's nuisance refitted by one linear least-squares step, without bounds,
+    with a fixed nuisance Jacobian (block diagonal: 3 columns per recording)."""
 
     def __init__(self, problem: FitProblem, nuisance_jacobian: np.ndarray) -> None:
         self.problem = problem
