@@ -146,31 +146,28 @@ def _beyond_linear_range(
     ``simulated``: the residuals at the fit and at each stepped point, every nuisance refitted by
     the same chord iterations. The change is measured between the two: the chord refit's linear
     nuisance step does not respect the bounds, and where a friction factor rests on its bound
-    the chord refit of the fit itself stands far above the fit's chi^2 (an adhesion limit: by
-    1300), which a test against the fit's own chi^2 took for a step beyond its linear range."""
+    the chord refit of the fit itself stands far above the fit's chi^2, which a test against the
+    fit's own chi^2 takes for a step beyond its linear range."""
     at_fit_simulated, at_steps = simulated
     own_gradient = _gradients(fit, blocks)
     total_information, total_gradient = np.sum(information, axis=0), np.sum(own_gradient, axis=0)
+    chi2_at_fit = weighting.recording_sse(at_fit_simulated)
     beyond = np.zeros(len(blocks), dtype=bool)
     for i in np.flatnonzero(stepped):
-        rows, step = blocks[i][0], steps[i]
-        at_fit = _others_chi2(weighting, at_fit_simulated, rows)
+        step = steps[i]
+        at_fit = float(chi2_at_fit.sum() - chi2_at_fit[i])
         quadratic = (
             at_fit
             + 2.0 * step @ (total_gradient - own_gradient[i])
             + step @ (total_information - information[i]) @ step
         )
-        achieved = _others_chi2(weighting, at_steps[i], rows)
+        chi2_stepped = weighting.recording_sse(at_steps[i])
+        achieved = float(chi2_stepped.sum() - chi2_stepped[i])
         beyond[i] = (
             achieved - quadratic > rules.heldout_linear_chi2_slack
             and at_fit - achieved < rules.heldout_linear_min_ratio * (at_fit - quadratic)
         )
     return beyond
-
-
-def _others_chi2(weighting: Weighting, residual: np.ndarray, rows: np.ndarray) -> float:
-    """The effective chi^2 of ``residual`` without the recording whose ``rows`` these are."""
-    return weighting.chi2(residual) - float(np.sum(weighting.weights[rows] * residual[rows] ** 2))
 
 
 def _predicted_from_others_fit(problem: FitProblem, fit: FitResult, left_out: int, fit_iterations: int) -> np.ndarray:
