@@ -36,7 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares, lsq_linear
+from scipy.optimize import least_squares
 
 from .. import config as cfg
 from ..effects import EFFECTS, FrictionLevel, ParameterSpec, SpeedSensorScale
@@ -324,15 +324,7 @@ class FitProblem:
         A joint trust-region fit over every recording's nuisance moves them all by one step size:
         one recording far from its start (a friction factor 20 % off) holds the others back, the
         unmodified model stops unconverged well above its optimal chi^2, and every candidate (even
-        one at its no-effect value) then looks like an improvement.
-
-        The damped step is clipped to the bounds, not solved within them as the chord refit's
-        is: the bounded step is the better one for the linear model but not always after the
-        simulation, and within the same iterations it left the unmodified fit of a set of four
-        failed units higher (tests/test_diagnosis.py's: an effective chi^2 of 11343 against
-        11260, a recording's initial speed on the other side of its start). Where a friction
-        factor rests on its bound, the fit can stop above what a point within the bounds reaches
-        (5 % above on tests/test_nuisance_bounds.py's set)."""
+        one at its no-effect value) then looks like an improvement."""
         p, n = len(free), self.n
         lower, upper = self.bounds(free)
         x = np.clip(np.asarray(x, dtype=float), lower, upper)
@@ -448,11 +440,10 @@ class FitProblem:
         prediction), each followed by a simulation at the moved point. Returns the residuals of
         the last simulation after its linear nuisance step, and the moved points.
 
-        Each linear step is solved within the nuisance bounds. Solved without them and the point
-        clipped, the step of a recording whose friction factor rests on its bound leans on the
-        initial speed and disc temperature to make up for the clipped factor: the returned
-        residual is that of a point outside the bounds, and the next simulation, at the clipped
-        point, stands above where the iterations started.
+        The linear step is solved without the nuisance bounds and the point then clipped to
+        them: where a nuisance parameter rests on its bound, the returned residual is not the
+        moved point's, and the collinear columns have made up for the clipped one. Compare two
+        such residuals with each other, not with a fit's.
 
         One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
         gradient) needs a friction factor 8 % off, far outside the linear range of the samples
@@ -464,7 +455,7 @@ class FitProblem:
             residuals, _ = self.simulate(list(effect_ids), fixed, free, points)
             projected = np.empty_like(residuals)
             for j, residual in enumerate(residuals):
-                projected[j], step = profile.project(residual, (lower - points[j, p:], upper - points[j, p:]))
+                projected[j], step = profile.project(residual)
                 points[j, p:] = np.clip(points[j, p:] + step, lower, upper)
         return projected, points
 
@@ -501,8 +492,8 @@ class FitProblem:
 
 
 class NuisanceProfile:
-    """Each recording's nuisance refitted by one linear least-squares step with a fixed nuisance
-    Jacobian (block diagonal: 3 columns per recording), within bounds on the step where given."""
+    """Each recording's nuisance refitted by one linear least-squares step, without bounds,
+    with a fixed nuisance Jacobian (block diagonal: 3 columns per recording)."""
 
     def __init__(self, problem: FitProblem, nuisance_jacobian: np.ndarray) -> None:
         self.problem = problem
@@ -515,25 +506,14 @@ class NuisanceProfile:
             q, r = np.linalg.qr(block)
             self.blocks.append((rows, columns, q, r))
 
-    def project(
-        self, residual: np.ndarray, step_bounds: tuple[np.ndarray, np.ndarray] | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The residual after the linear nuisance refit, and the nuisance step (v0, T0, k of
-        every recording, in the fit's order). ``step_bounds``: the lowest and highest step of
-        each nuisance parameter (the bounds less the point); a recording whose unbounded step
-        leaves them is solved as a bounded 3-column least-squares problem."""
+    def project(self, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residual after the linear nuisance refit, and the nuisance step."""
         out = residual.copy()
         step = np.zeros(3 * self.problem.n)
         for rows, columns, q, r in self.blocks:
             coefficients = q.T @ residual[rows]
-            if step_bounds is None:
-                own, moved = -np.linalg.solve(r, coefficients), -coefficients
-            else:
-                # |residual + q r s|^2 = |residual - q c|^2 + |c + r s|^2: only c + r s moves.
-                own = _step_within(r, -coefficients, step_bounds[0][columns], step_bounds[1][columns])
-                moved = r @ own
-            out[rows] = residual[rows] + q @ moved
-            step[columns] = own
+            out[rows] = residual[rows] - q @ coefficients
+            step[columns] = -np.linalg.solve(r, coefficients)
         return out, step
 
     def project_columns(self, columns: np.ndarray) -> np.ndarray:
@@ -541,17 +521,3 @@ class NuisanceProfile:
         for rows, _, q, _ in self.blocks:
             out[rows] = columns[rows] - q @ (q.T @ columns[rows])
         return out
-
-
-def _step_within(matrix: np.ndarray, target: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """The step s within ``low`` <= s <= ``high`` that minimises |matrix s - target| (square,
-    full-rank ``matrix``): the plain solution where it stays within them.
-
-    Solved without the bounds and then clipped, a step that leaves them lets the collinear
-    parameters make up for the clipped one (a friction factor on its bound: the initial speed
-    and disc temperature moved to take over its part), and the point reached is neither the
-    bounded optimum nor what the step predicted."""
-    step = np.linalg.solve(matrix, target)
-    if np.all(step >= low) and np.all(step <= high):
-        return step
-    return lsq_linear(matrix, target, bounds=(low, high), method="bvls").x
