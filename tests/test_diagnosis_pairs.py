@@ -13,7 +13,7 @@ import pytest
 
 from brakegym.diagnosis import diagnose
 from brakegym.diagnosis.judging import nested_candidates
-from brakegym.effects import in_library_order
+from brakegym.effects import in_library_order, special_cases
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -94,8 +94,11 @@ def test_a_pair_holds_the_pair_with_the_effect_its_member_extends():
     assert nested_candidates(candidate("friction_level", "gradient_section"), others) == [with_level]
     # A member that extends the other member holds nothing: the pair would be one effect.
     assert nested_candidates(candidate("gradient", "gradient_section"), others) == []
+    # A profile holds a section, and through it the whole-line gradient.
+    assert special_cases("gradient_sections") == ("gradient_section", "gradient")
     profile = candidate("gradient_sections", "running_resistance")
-    assert nested_candidates(profile, others) == [with_section]
+    assert nested_candidates(profile, others) == [with_section, with_gradient]
+    assert nested_candidates(candidate("gradient", "gradient_sections"), others) == []
 
 
 def test_a_look_alike_of_the_single_is_fitted_beside_the_pairs_second_effect(tmp_path):

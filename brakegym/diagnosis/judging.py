@@ -68,7 +68,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, Evidence, FrictionLevel, in_library_order
+from ..effects import EFFECTS, Evidence, FrictionLevel, in_library_order, special_cases
 from ..statistics import paired_t, paired_t_p_value
 from .fitting import FitProblem, FitResult
 from .heldout import HeldOut, held_out
@@ -410,17 +410,17 @@ class Judge:
 
 def nested_candidates(candidate: Candidate, others: Sequence[Candidate]) -> list[Candidate]:
     """Those of ``others`` that ``candidate`` holds as a special case: its effects with one of them
-    replaced by the effect that one extends (:attr:`brakegym.effects.base.Effect.extends`), in the
-    library's order."""
+    replaced by an effect that one holds (:func:`brakegym.effects.special_cases`: a profile holds
+    a section and the whole-line gradient), in the library's order."""
     by_ids = {c.effect_ids: c for c in others}
     nested = []
     for effect_id in candidate.effect_ids:
-        extended = EFFECTS[effect_id].extends
-        if extended is None or extended in candidate.effect_ids:
-            continue
-        ids = in_library_order(extended if e == effect_id else e for e in candidate.effect_ids)
-        if ids in by_ids:
-            nested.append(by_ids[ids])
+        for held in special_cases(effect_id):
+            if held in candidate.effect_ids:
+                continue
+            ids = in_library_order(held if e == effect_id else e for e in candidate.effect_ids)
+            if ids in by_ids:
+                nested.append(by_ids[ids])
     return nested
 
 

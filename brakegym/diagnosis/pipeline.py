@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel, in_library_order
+from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel, in_library_order, special_cases
 from ..execution.blas import on_one_blas_thread
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
@@ -353,14 +353,20 @@ class Diagnoser:
         The ``top_singles`` are the best of the grid-screened effects; an effect screened where
         the data locate it (a section, a stretch) is fitted beside them, not in place of one: a
         step along position that a whole-line effect leaves (an adhesion limit's) makes the
-        stretch its look-alike, and it would push the next different effect out."""
+        stretch its look-alike, and it would push the next different effect out. A located effect
+        must beat what it holds as a special case (:func:`.judging.nested_candidates`: a profile
+        of sections the whole-line gradient), so those are fitted too where their screening
+        promises a gain: a profile that follows a gradient over the recordings' reach would
+        otherwise meet no gradient to beat."""
         rules = self.rules
         order = sorted(screened, key=lambda e: screened[e].chi2)
         promising = [e for e in order if screened[e].chi2 < judge.chi2_base - rules.screen_min_gain]
         gridded = [e for e in promising if EFFECTS[e].grid_screened]
         located = [e for e in promising if not EFFECTS[e].grid_screened]
+        chosen = self._with_shared_shift(gridded, rules.top_singles, screened) + located
+        chosen += [e for e in gridded if e not in chosen and any(e in special_cases(x) for x in located)]
         singles = []
-        for effect_id in self._with_shared_shift(gridded, rules.top_singles, screened) + located:
+        for effect_id in chosen:
             fit = self._fit_screened(screening, effect_id, screened[effect_id], judge.weighting)
             singles.append(judge.candidate((effect_id,), fit))
         singles.sort(key=lambda c: c.delta_bic)

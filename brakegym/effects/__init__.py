@@ -72,6 +72,18 @@ def in_library_order(effect_ids: Iterable[str]) -> tuple[str, ...]:
     return tuple(sorted(effect_ids, key=order.index))
 
 
+def special_cases(effect_id: str) -> tuple[str, ...]:
+    """The effects (ids) that ``effect_id`` holds as special cases, nearest first: the chain of
+    :attr:`Effect.extends` (a profile of two sections holds one section, which holds the
+    whole-line gradient)."""
+    held = []
+    extended = effect_class(effect_id).extends
+    while extended is not None:
+        held.append(extended)
+        extended = EFFECTS[extended].extends
+    return tuple(held)
+
+
 def effect_class(effect_id: str) -> type[Effect]:
     if effect_id not in EFFECTS:
         raise ValueError(f"unknown effect {effect_id!r}; known: {', '.join(EFFECTS)}")
@@ -191,4 +203,5 @@ __all__ = [
     "load_effects",
     "make_effect",
     "separating_measurement",
+    "special_cases",
 ]
