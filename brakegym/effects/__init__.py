@@ -74,8 +74,8 @@ def in_library_order(effect_ids: Iterable[str]) -> tuple[str, ...]:
 
 def special_cases(effect_id: str) -> tuple[str, ...]:
     """The effects (ids) that ``effect_id`` holds as special cases, nearest first: the chain of
-    :attr:`Effect.extends` (a profile of two sections holds one section, which holds the
-    whole-line gradient)."""
+    :attr:`~brakegym.effects.base.Effect.extends` (a profile of two sections holds one section,
+    which holds the whole-line gradient)."""
     held = []
     extended = effect_class(effect_id).extends
     while extended is not None:
