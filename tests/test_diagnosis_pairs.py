@@ -9,11 +9,13 @@ The tolerances were fixed before the tests first ran: a gradient within 1 permil
 
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from brakegym.diagnosis import diagnose
 from brakegym.diagnosis.judging import nested_candidates
-from brakegym.effects import in_library_order, special_cases
+from brakegym.diagnosis.pipeline import look_alike_swaps
+from brakegym.effects import in_library_order, nested_effects, special_cases
 from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -99,6 +101,51 @@ def test_a_pair_holds_the_pair_with_the_effect_its_member_extends():
     profile = candidate("gradient_sections", "running_resistance")
     assert nested_candidates(profile, others) == [with_section, with_gradient]
     assert nested_candidates(candidate("gradient", "gradient_sections"), others) == []
+
+
+def test_each_effect_of_a_selected_pair_meets_the_look_alikes_of_the_other():
+    # An adhesion limit selected, a failed unit beside it: the next passing singles (a gradient
+    # and a rotating mass, lowest held-out error first) are fitted in either effect's place.
+    def candidate(*ids, heldout_sse=0.0, passes=True):
+        return SimpleNamespace(
+            effect_ids=in_library_order(ids), passes=passes, heldout=SimpleNamespace(sse=np.array([heldout_sse]))
+        )
+
+    single = candidate("adhesion_limit", heldout_sse=1.0)
+    pair = candidate("adhesion_limit", "brake_unit_failure")
+    gradient = candidate("gradient", heldout_sse=2.0)
+    rotating = candidate("rotating_mass", heldout_sse=3.0)
+    singles = [
+        single,
+        candidate("brake_unit_failure", heldout_sse=1.5),
+        rotating,
+        gradient,
+        candidate("friction_level", heldout_sse=0.5, passes=False),
+        candidate("wet_pads", heldout_sse=4.0),
+    ]
+    swaps = look_alike_swaps(single, pair, singles, [pair], count=2)
+    assert [(kept, other.effect_ids[0]) for kept, other in swaps] == [
+        ("brake_unit_failure", "gradient"),
+        ("brake_unit_failure", "rotating_mass"),
+        ("adhesion_limit", "gradient"),
+        ("adhesion_limit", "rotating_mass"),
+    ]
+    # A pair already fitted is not fitted again.
+    fitted = [pair, candidate("adhesion_limit", "gradient")]
+    swaps = look_alike_swaps(single, pair, singles, fitted, count=2)
+    assert ("adhesion_limit", gradient) not in swaps and ("adhesion_limit", rotating) in swaps
+    # Nor is an effect beside one it holds as a special case, through the whole chain: a profile
+    # of two sections holds the whole-line gradient through a section.
+    assert nested_effects("gradient_sections", "gradient") and nested_effects("gradient", "gradient_section")
+    assert not nested_effects("gradient", "adhesion_limit")
+    profile_pair = candidate("brake_unit_failure", "gradient_sections")
+    units = candidate("brake_unit_failure", heldout_sse=1.0)
+    swaps = look_alike_swaps(units, profile_pair, [units, gradient, rotating], [profile_pair], count=2)
+    assert [(kept, other.effect_ids[0]) for kept, other in swaps] == [
+        ("gradient_sections", "rotating_mass"),
+        ("brake_unit_failure", "gradient"),
+        ("brake_unit_failure", "rotating_mass"),
+    ]
 
 
 def test_a_look_alike_of_the_single_is_fitted_beside_the_pairs_second_effect(tmp_path):

@@ -57,7 +57,15 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import EFFECTS, TRAIN_LENGTH_M, Evidence, FrictionLevel, in_library_order, special_cases
+from ..effects import (
+    EFFECTS,
+    TRAIN_LENGTH_M,
+    Evidence,
+    FrictionLevel,
+    in_library_order,
+    nested_effects,
+    special_cases,
+)
 from ..execution.blas import on_one_blas_thread
 from ..plants import train_plant
 from ..recordings.columns import DECEL, DISC_TEMPERATURE
@@ -91,7 +99,7 @@ from .screening import ScreenedPoint, Screening, integer_neighbours
 from .signatures import FallbackScreening, FallbackTry, match_signatures
 from .weighting import CHANNEL_NAMES, Weighting
 
-__all__ = ["Diagnoser", "Diagnosis", "diagnose", "pairing_pool"]
+__all__ = ["Diagnoser", "Diagnosis", "diagnose", "look_alike_swaps", "pairing_pool"]
 
 
 @dataclass
@@ -294,7 +302,7 @@ class Diagnoser:
             pairs += forward_pairs
         verdict = judge.verdict(singles, pairs)
         if single is not None and verdict.selected is not None and len(verdict.selected.effect_ids) == 2:
-            swapped = self._swapped_pairs(single, verdict.selected, singles, pairs, judge)
+            swapped = self._swapped_pairs(single, verdict.selected, singles, pairs, judge, forward)
             pairs += swapped
             verdict = judge.with_swapped_pairs(verdict, swapped)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
@@ -417,8 +425,7 @@ class Diagnoser:
             self.problem.fit([effect_id], np.concatenate([theta, nuisance]), fixed=fixed, max_iterations=iterations)
             for fixed, theta, nuisance in starts
         ]
-        chi2s = [weighting.chi2(f.residual) for f in fits]
-        return fits[min(range(len(fits)), key=lambda j: (not np.isfinite(chi2s[j]), chi2s[j]))]
+        return _least_chi2(fits, weighting)
 
     def _fit_pairs(self, singles: Sequence[Candidate], judge: Judge) -> list[Candidate]:
         """The pairs of the best ``pairs_from`` singles of grid-screened effects, and of the best
@@ -472,8 +479,7 @@ class Diagnoser:
                 free = problem.free_parameters(list(ids), held)
                 start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
                 fits.append(problem.fit(list(ids), start, fixed=held, max_iterations=rules.fit_iterations))
-            fit = min(fits, key=lambda f: judge.weighting.chi2(f.residual))
-            new_pairs.append(judge.candidate(ids, fit))
+            new_pairs.append(judge.candidate(ids, _least_chi2(fits, judge.weighting)))
         return new_pairs, screened
 
     def _swapped_pairs(
@@ -483,34 +489,55 @@ class Diagnoser:
         singles: Sequence[Candidate],
         pairs: Sequence[Candidate],
         judge: Judge,
+        forward: dict[str, ScreenedPoint],
     ) -> list[Candidate]:
-        """The selected ``pair`` with its ``single`` swapped for each of the next passing singles
-        (``swapped_pairs`` of them, lowest held-out error first), fitted from that single's
-        parameters and nuisance and the pair's second effect's parameters. The forward step
-        fits pairs with the selected single only; a look-alike of it (the same loss of brake force
-        as failed units or as a rotating mass) would otherwise never meet the pair's second effect.
-        Pairs already fitted, and those of an effect with the one it extends, are left out."""
-        problem, rules = self.problem, self.rules
-        (second_id,) = [e for e in pair.effect_ids if e not in single.effect_ids]
-        fitted = {frozenset(c.effect_ids) for c in pairs}
-        others = sorted(
-            (c for c in singles if c.passes and c is not single and c.effect_ids[0] != second_id),
-            key=lambda c: float(np.sum(c.heldout.sse)),
-        )
+        """The selected ``pair`` with each of its effects swapped for a look-alike
+        (:func:`look_alike_swaps`), each fitted from the look-alike's own fit and the pair's; one
+        that takes the second effect's place also from its point in the forward step's
+        screening on top of the single (``forward``), as the forward step's pairs start."""
         swapped = []
-        for other in others[: rules.swapped_pairs]:
-            (other_id,) = other.effect_ids
-            ids = in_library_order((other_id, second_id))
-            related = EFFECTS[other_id].extends == second_id or EFFECTS[second_id].extends == other_id
-            if frozenset(ids) in fitted or related:
-                continue
-            held = {**other.fit.fixed, **{k: v for k, v in pair.fit.fixed.items() if k not in single.fit.fixed}}
-            values = {**pair.fit.parameters, **other.fit.parameters}
-            free = problem.free_parameters(list(ids), held)
-            start = np.concatenate([[values[parameter.name] for parameter in free], other.fit.x[len(other.fit.free) :]])
-            fit = problem.fit(list(ids), start, fixed=held, max_iterations=rules.fit_iterations)
-            swapped.append(judge.candidate(ids, fit))
+        for kept, other in look_alike_swaps(single, pair, singles, pairs, self.rules.swapped_pairs):
+            beside_single = kept == single.effect_ids[0]
+            screened = forward.get(other.effect_ids[0]) if beside_single else None
+            ids = in_library_order((other.effect_ids[0], kept))
+            swapped.append(judge.candidate(ids, self._fit_swapped(pair, kept, other, screened, judge)))
         return swapped
+
+    def _fit_swapped(
+        self,
+        pair: Candidate,
+        kept: str,
+        other: Candidate,
+        screened: ScreenedPoint | None,
+        judge: Judge,
+    ) -> FitResult:
+        """The pair of ``kept`` (one of ``pair``'s effects) and the single ``other``, fitted from
+        ``kept``'s parameters in the pair's fit and ``other``'s own fit, with the nuisance of
+        ``other``'s fit (the pair's has absorbed what the swapped-out effect explained) and with
+        the unmodified model's; and from ``other``'s ``screened`` point with its nuisance where
+        given. The fit of least effective chi^2 is kept. A look-alike's own fit can lie far from
+        where it sits beside ``kept`` (a gradient fitted alone where an adhesion limit acts ends
+        at twice its size), and its nuisance with it: from there the fit stops in a valley that
+        the unmodified model's friction factors lead out of."""
+        problem = self.problem
+        (other_id,) = other.effect_ids
+        ids = in_library_order((other_id, kept))
+        kept_names = {spec.name for spec in EFFECTS[kept].parameters}
+        kept_fixed = {k: v for k, v in pair.fit.fixed.items() if k in kept_names}
+        kept_values = {k: v for k, v in pair.fit.parameters.items() if k in kept_names}
+        own = (other.fit.fixed, other.fit.parameters)
+        starts = [(*own, other.fit.x[len(other.fit.free) :]), (*own, judge.baseline.x[len(judge.baseline.free) :])]
+        if screened is not None:
+            screened_values = dict(zip(_free_names(problem, other_id, screened.fixed), screened.theta))
+            starts.append((screened.fixed, screened_values, screened.nuisance))
+        fits = []
+        for other_fixed, other_values, nuisance in starts:
+            held = {**other_fixed, **kept_fixed}
+            values = {**kept_values, **other_values}
+            free = problem.free_parameters(list(ids), held)
+            start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
+            fits.append(problem.fit(list(ids), start, fixed=held, max_iterations=self.rules.fit_iterations))
+        return _least_chi2(fits, judge.weighting)
 
     def _fallback_screening(
         self, weighting: Weighting, baseline: FitResult, singles: Sequence[Candidate], judge: Judge
@@ -615,6 +642,12 @@ class BaselineResidual:
     description: dict[str, Any] | None
 
 
+def _least_chi2(fits: Sequence[FitResult], weighting: Weighting) -> FitResult:
+    """The fit of least effective chi^2 of ``fits`` (a non-finite one last)."""
+    chi2s = [weighting.chi2(f.residual) for f in fits]
+    return fits[min(range(len(fits)), key=lambda j: (not np.isfinite(chi2s[j]), chi2s[j]))]
+
+
 def _free_names(problem: FitProblem, effect_id: str, fixed: dict[str, float]) -> list[str]:
     """The names of ``effect_id``'s free parameters with ``fixed`` held, in the screening's order."""
     return [parameter.name for parameter in problem.free_parameters([effect_id], fixed)]
@@ -627,6 +660,37 @@ def pairing_pool(singles: Sequence[Candidate], count: int) -> list[Candidate]:
     pool = [c for c in singles if EFFECTS[c.effect_ids[0]].grid_screened][:count]
     pool += [c for c in singles[:count] if not EFFECTS[c.effect_ids[0]].grid_screened][:1]
     return sorted(pool, key=lambda c: c.delta_bic)
+
+
+def look_alike_swaps(
+    single: Candidate, pair: Candidate, singles: Sequence[Candidate], pairs: Sequence[Candidate], count: int
+) -> list[tuple[str, Candidate]]:
+    """The pairs to fit beside the selected ``pair`` (the selected ``single`` and a second effect):
+    each of its effects (the second first) kept, beside each of the next ``count`` passing
+    ``singles`` (lowest held-out error first) in the other's place; as (kept effect id, single).
+
+    The forward step fits pairs with the selected single only, from the effects that screen best
+    on top of it: a look-alike of the single (the same loss of brake force as failed units or as a
+    rotating mass) would otherwise never meet the pair's second effect, nor a look-alike of the
+    second effect (a gradient's loss of deceleration against a failed unit's, on top of an
+    adhesion limit) the single. Pairs among ``pairs`` (already fitted), and those of an effect
+    with one it holds as a special case (:func:`brakegym.effects.nested_effects`), are left out."""
+    (first,) = single.effect_ids
+    (second,) = [e for e in pair.effect_ids if e != first]
+    fitted = {frozenset(c.effect_ids) for c in pairs}
+    others = sorted(
+        (c for c in singles if c.passes and c.effect_ids[0] not in pair.effect_ids),
+        key=lambda c: float(np.sum(c.heldout.sse)),
+    )
+    swaps = []
+    for kept in (second, first):
+        for other in others[:count]:
+            ids = frozenset((other.effect_ids[0], kept))
+            if ids in fitted or nested_effects(other.effect_ids[0], kept):
+                continue
+            fitted.add(ids)
+            swaps.append((kept, other))
+    return swaps
 
 
 def forward_screening_entry(single: Candidate, screened: dict[str, ScreenedPoint]) -> dict[str, Any]:

@@ -84,6 +84,12 @@ def special_cases(effect_id: str) -> tuple[str, ...]:
     return tuple(held)
 
 
+def nested_effects(first_id: str, second_id: str) -> bool:
+    """Whether one of the two effects holds the other as a special case (:func:`special_cases`):
+    a pair of them describes what the one alone does, with one more level of freedom."""
+    return first_id in special_cases(second_id) or second_id in special_cases(first_id)
+
+
 def effect_class(effect_id: str) -> type[Effect]:
     if effect_id not in EFFECTS:
         raise ValueError(f"unknown effect {effect_id!r}; known: {', '.join(EFFECTS)}")
@@ -202,6 +208,7 @@ __all__ = [
     "in_library_order",
     "load_effects",
     "make_effect",
+    "nested_effects",
     "separating_measurement",
     "special_cases",
 ]
