@@ -474,11 +474,8 @@ class Diagnoser:
                 (neighbour, given.starts(effect_id, neighbour, point.theta[None])[0])
                 for neighbour in integer_neighbours(effect_id, point.fixed)
             ]:
-                held = {**single.fit.fixed, **fixed}
                 values = {**single.fit.parameters, **dict(zip(_free_names(problem, effect_id, fixed), point.theta))}
-                free = problem.free_parameters(list(ids), held)
-                start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
-                fits.append(problem.fit(list(ids), start, fixed=held, max_iterations=rules.fit_iterations))
+                fits.append(self._fit_from_values(ids, {**single.fit.fixed, **fixed}, values, nuisance))
             new_pairs.append(judge.candidate(ids, _least_chi2(fits, judge.weighting)))
         return new_pairs, screened
 
@@ -499,8 +496,8 @@ class Diagnoser:
         for kept, other in look_alike_swaps(single, pair, singles, pairs, self.rules.swapped_pairs):
             beside_single = kept == single.effect_ids[0]
             screened = forward.get(other.effect_ids[0]) if beside_single else None
-            ids = in_library_order((other.effect_ids[0], kept))
-            swapped.append(judge.candidate(ids, self._fit_swapped(pair, kept, other, screened, judge)))
+            fit = self._fit_swapped(pair, kept, other, screened, judge)
+            swapped.append(judge.candidate(fit.effect_ids, fit))
         return swapped
 
     def _fit_swapped(
@@ -530,14 +527,20 @@ class Diagnoser:
         if screened is not None:
             screened_values = dict(zip(_free_names(problem, other_id, screened.fixed), screened.theta))
             starts.append((screened.fixed, screened_values, screened.nuisance))
-        fits = []
-        for other_fixed, other_values, nuisance in starts:
-            held = {**other_fixed, **kept_fixed}
-            values = {**kept_values, **other_values}
-            free = problem.free_parameters(list(ids), held)
-            start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
-            fits.append(problem.fit(list(ids), start, fixed=held, max_iterations=self.rules.fit_iterations))
+        fits = [
+            self._fit_from_values(ids, {**other_fixed, **kept_fixed}, {**kept_values, **other_values}, nuisance)
+            for other_fixed, other_values, nuisance in starts
+        ]
         return _least_chi2(fits, judge.weighting)
+
+    def _fit_from_values(
+        self, ids: tuple[str, ...], held: dict[str, float], values: dict[str, float], nuisance: np.ndarray
+    ) -> FitResult:
+        """``ids`` fitted with ``held`` integer values, from ``values`` (by parameter name; names
+        not free are ignored) and ``nuisance``."""
+        free = self.problem.free_parameters(list(ids), held)
+        start = np.concatenate([[values[parameter.name] for parameter in free], nuisance])
+        return self.problem.fit(list(ids), start, fixed=held, max_iterations=self.rules.fit_iterations)
 
     def _fallback_screening(
         self, weighting: Weighting, baseline: FitResult, singles: Sequence[Candidate], judge: Judge
