@@ -430,19 +430,21 @@ class Diagnoser:
     def _fit_pairs(self, singles: Sequence[Candidate], judge: Judge) -> list[Candidate]:
         """The pairs of the best ``pairs_from`` singles of grid-screened effects, and of the best
         located one where it ranks among the best ``pairs_from`` of all (see ``_fit_singles``),
-        fitted from the singles' parameters and the nuisance of the better one (the unmodified
+        fitted from the singles' parameters with the nuisance of the better one (the unmodified
         model's has absorbed what that effect explains: friction factors near 0.75 where units
-        failed)."""
+        failed) and with the unmodified model's (the better single's has absorbed what the other
+        effect explains, and can lie in a valley of its own); the fit of least effective chi^2
+        is kept."""
         pairs = []
         for a, b in itertools.combinations(pairing_pool(singles, self.rules.pairs_from), 2):
             ids = in_library_order((a.effect_ids[0], b.effect_ids[0]))
-            first, second = (a, b) if ids[0] == a.effect_ids[0] else (b, a)
-            fixed = {**first.fit.fixed, **second.fit.fixed}
-            start = np.concatenate(
-                [first.fit.x[: len(first.fit.free)], second.fit.x[: len(second.fit.free)], a.fit.x[len(a.fit.free) :]]
-            )
-            fit = self.problem.fit(list(ids), start, fixed=fixed, max_iterations=self.rules.fit_iterations)
-            pairs.append(judge.candidate(ids, fit))
+            fixed = {**a.fit.fixed, **b.fit.fixed}
+            values = {**a.fit.parameters, **b.fit.parameters}
+            fits = [
+                self._fit_from_values(ids, fixed, values, nuisance)
+                for nuisance in (a.fit.x[len(a.fit.free) :], judge.baseline.x[len(judge.baseline.free) :])
+            ]
+            pairs.append(judge.candidate(ids, _least_chi2(fits, judge.weighting)))
         return pairs
 
     def _forward_pairs(
@@ -451,9 +453,10 @@ class Diagnoser:
         """The forward step on the rest: every other effect screened on top of the selected
         ``single`` (its parameters held), and the best ``forward_pairs`` of those whose screening
         beats the single by ``screen_min_gain`` fitted in full as pairs with it, from its
-        parameters and the screened point's (an integer parameter's neighbours too, as for the
-        singles). Pairs already among ``pairs`` are not fitted again. Returns the new pairs and
-        the screened points."""
+        parameters and the screened point's, with the point's nuisance and with the unmodified
+        model's (an integer parameter's neighbours too, as for the singles); the fit of least
+        effective chi^2 is kept. Pairs already among ``pairs`` are not fitted again. Returns the
+        new pairs and the screened points."""
         problem, rules = self.problem, self.rules
         given = Screening(problem, judge.weighting, rules, evidence, self.n_discs, single.fit)
         screened = given.run()
@@ -465,12 +468,13 @@ class Diagnoser:
             for e in order
             if screened[e].chi2 < single.chi2_eff - rules.screen_min_gain and frozenset((selected_id, e)) not in fitted
         ]
+        unmodified_nuisance = judge.baseline.x[len(judge.baseline.free) :]
         new_pairs = []
         for effect_id in self._with_shared_shift(promising, rules.forward_pairs, screened):
             point = screened[effect_id]
             ids = in_library_order((selected_id, effect_id))
             fits = []
-            for fixed, nuisance in [(point.fixed, point.nuisance)] + [
+            for fixed, nuisance in [(point.fixed, point.nuisance), (point.fixed, unmodified_nuisance)] + [
                 (neighbour, given.starts(effect_id, neighbour, point.theta[None])[0])
                 for neighbour in integer_neighbours(effect_id, point.fixed)
             ]:
