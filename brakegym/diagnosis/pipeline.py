@@ -201,7 +201,9 @@ class Diagnoser:
         """The unmodified model fitted to the recordings: each recording's nuisance alone."""
         return self.problem.fit([], self.problem.gridded_start())
 
-    def _weighting(self, baseline: FitResult) -> Weighting:
+    def weighting(self, baseline: FitResult) -> Weighting:
+        """The effective sample weights every candidate is judged by, from ``baseline`` (the
+        unmodified model's fit) and each channel's noise autocorrelation."""
         noise_rho = {c: m.rho for c, m in self.noise_models.items() if np.isfinite(m.rho)}
         return Weighting(self.problem, baseline.residual, noise_rho)
 
@@ -233,7 +235,7 @@ class Diagnoser:
             if missing:
                 raise ValueError(f"effects {list(ids)}: no value for parameter(s) {missing} (integer ones go in fixed)")
         baseline = self.unmodified_fit()
-        weighting = self._weighting(baseline)
+        weighting = self.weighting(baseline)
         evidence = self._evidence(baseline, self._position_steps(weighting, baseline))
         nuisance = baseline.x[len(baseline.free) :]
         if start is None:
@@ -283,7 +285,7 @@ class Diagnoser:
     def run(self) -> Diagnosis:
         problem, rules = self.problem, self.rules
         baseline = self.unmodified_fit()
-        weighting = self._weighting(baseline)
+        weighting = self.weighting(baseline)
         position_steps = self._position_steps(weighting, baseline)
         evidence = self._evidence(baseline, position_steps)
         judge = Judge(problem, weighting, rules, evidence, baseline)
