@@ -1,14 +1,15 @@
 """How closely the diagnosis's model reaches a synthesized set at its truth, under each scatter (not a test).
 
-Synthesizes one set (``--seed``, random library effects without a base offset, as ``bench_diagnosis.py`` draws its clean
-sets) under several scatter set-ups. The applications, the effects and the noise come from streams
-of their own, so the sets differ in their scatter alone. Each is evaluated with the key's effects
-at their true parameters, every recording's nuisance (initial speed, disc temperature, friction
-factor) refitted to convergence (``FitProblem.refit_nuisance``), and the script prints per
-recording the effective chi^2 (its friction-factor prior row included) over the recording's
-effective samples, and the fitted friction factor. Near 1 the model reaches the data at the
-truth; far above it, with friction factors on their bounds, the synthesized data vary something
-that the nuisance does not hold, and a diagnosis on that set judges fits that cannot reach it.
+Synthesizes one set (``--seed``, random library effects without a base offset, as
+``bench_diagnosis.py`` draws its clean sets) under several scatter set-ups. The applications, the
+effects and the noise come from streams of their own, so the sets differ in their scatter alone.
+Each is evaluated with the key's effects at their true parameters, every recording's nuisance
+(initial speed, disc temperature, friction factor) refitted to convergence
+(``FitProblem.refit_nuisance``), and the script prints per recording the effective chi^2 (its
+friction-factor prior row included) over the recording's effective samples, and the fitted
+friction factor. Near 1 the model reaches the data at the truth; far above it, with friction
+factors on their bounds, the synthesized data vary something that the nuisance does not hold,
+and a diagnosis on that set judges fits that cannot reach it.
 
 Set-ups: ``ds`` (no scatter), ``mcs-75-25`` (what ``brakegym synth`` writes), and three written to
 a temporary config folder: the friction drawn per application only (``global_fraction`` 0.75),
@@ -64,7 +65,7 @@ def truth_reach(folder: Path, key: dict) -> tuple[float, np.ndarray, np.ndarray]
     ids = in_library_order(tuple(effect["id"] for effect in key["effects"]))
     fixed = {spec.name: true_values[spec.name] for eid in ids for spec in EFFECTS[eid].parameters if spec.integer}
     free = problem.free_parameters(list(ids), fixed)
-    start = np.concatenate([[true_values[p.name] for p in free], baseline.x[len(baseline.free) :]])
+    start = np.concatenate([[true_values[p.name] for p in free], baseline.nuisance])
     x = problem.refit_nuisance(ids, fixed, free, start)
     residual = problem.simulate(ids, fixed, free, x[None])[0][0]
     measured = problem.channel_of >= 0

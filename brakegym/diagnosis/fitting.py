@@ -125,6 +125,11 @@ class FitResult:
         values.update(self.fixed)
         return values
 
+    @property
+    def nuisance(self) -> np.ndarray:
+        """Each recording's nuisance after the effect parameters: v0 (n), T0 (n), k (n)."""
+        return self.x[len(self.free) :]
+
 
 class FitProblem:
     """Recordings of one vehicle, their noise levels and the row layout of the residual."""

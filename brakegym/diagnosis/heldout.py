@@ -101,7 +101,7 @@ def held_out(
             others_steps = _leave_one_out_steps(problem, fit, blocks, information, at_no_effect, no_effect)
             others_fit = np.clip(fit.x[:p] + others_steps, lower[:p], upper[:p])
             points[:, :p] = np.where(at_no_effect, no_effect, others_fit)
-            points[at_no_effect.any(axis=1), p:] = reference.x[len(reference.free) :]
+            points[at_no_effect.any(axis=1), p:] = reference.nuisance
         if reference is None:
             simulated = _simulated(problem, fit, points, rules.screen_chord_iterations)
         else:

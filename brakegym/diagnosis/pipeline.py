@@ -237,7 +237,7 @@ class Diagnoser:
         baseline = self.unmodified_fit()
         weighting = self.weighting(baseline)
         evidence = self._evidence(baseline, self._position_steps(weighting, baseline))
-        nuisance = baseline.x[len(baseline.free) :]
+        nuisance = baseline.nuisance
         if start is None:
             start, nuisance = self._screened_start(ids, fixed, weighting, evidence, baseline)
         free = problem.free_parameters(list(ids), fixed)
@@ -269,7 +269,7 @@ class Diagnoser:
         if unscreened:
             raise ValueError(f"effect(s) {unscreened} have no screening point on these recordings; give start values")
         start: dict[str, float] = {}
-        nuisance, best_chi2 = baseline.x[len(baseline.free) :], math.inf
+        nuisance, best_chi2 = baseline.nuisance, math.inf
         held = dict(fixed)
         for effect_id in open_ids:
             point = screened[effect_id]
@@ -278,7 +278,7 @@ class Diagnoser:
             fixed.update(alone.fixed)
             start.update(alone.parameters)
             if weighting.chi2(alone.residual) < best_chi2:
-                best_chi2, nuisance = weighting.chi2(alone.residual), alone.x[len(alone.free) :]
+                best_chi2, nuisance = weighting.chi2(alone.residual), alone.nuisance
         return start, nuisance
 
     @on_one_blas_thread
@@ -444,7 +444,7 @@ class Diagnoser:
             values = {**a.fit.parameters, **b.fit.parameters}
             fits = [
                 self._fit_from_values(ids, fixed, values, nuisance)
-                for nuisance in (a.fit.x[len(a.fit.free) :], judge.baseline.x[len(judge.baseline.free) :])
+                for nuisance in (a.fit.nuisance, judge.baseline.nuisance)
             ]
             pairs.append(judge.candidate(ids, _least_chi2(fits, judge.weighting)))
         return pairs
@@ -470,7 +470,7 @@ class Diagnoser:
             for e in order
             if screened[e].chi2 < single.chi2_eff - rules.screen_min_gain and frozenset((selected_id, e)) not in fitted
         ]
-        unmodified_nuisance = judge.baseline.x[len(judge.baseline.free) :]
+        unmodified_nuisance = judge.baseline.nuisance
         new_pairs = []
         for effect_id in self._with_shared_shift(promising, rules.forward_pairs, screened):
             point = screened[effect_id]
@@ -529,7 +529,7 @@ class Diagnoser:
         kept_fixed = {k: v for k, v in pair.fit.fixed.items() if k in kept_names}
         kept_values = {k: v for k, v in pair.fit.parameters.items() if k in kept_names}
         own = (other.fit.fixed, other.fit.parameters)
-        starts = [(*own, other.fit.x[len(other.fit.free) :]), (*own, judge.baseline.x[len(judge.baseline.free) :])]
+        starts = [(*own, other.fit.nuisance), (*own, judge.baseline.nuisance)]
         if screened is not None:
             screened_values = dict(zip(_free_names(problem, other_id, screened.fixed), screened.theta))
             starts.append((screened.fixed, screened_values, screened.nuisance))
@@ -574,7 +574,7 @@ class Diagnoser:
             free = problem.free_parameters([match.effect_id], {})
             theta = np.array([start_values[p.name] for p in free])
             gridded = problem.gridded_start([match.effect_id], {}, free, theta)
-            starts = [({}, theta, baseline.x[len(baseline.free) :]), ({}, theta, gridded)]
+            starts = [({}, theta, baseline.nuisance), ({}, theta, gridded)]
             fit = self._best_of_starts(match.effect_id, starts, weighting)
             candidate = judge.candidate((match.effect_id,), fit)
             # Its figures against the unmodified model, for the report also where it is not kept.

@@ -168,7 +168,7 @@ class Screening:
         n = self.problem.n
         lower, upper = self.problem.nuisance_bounds()
         names = [parameter.name for parameter in self.problem.free_parameters([effect_id], fixed)]
-        starts = np.tile(self.baseline.x[len(self.baseline.free) :], (len(thetas), 1))
+        starts = np.tile(self.baseline.nuisance, (len(thetas), 1))
         if effect_id == FrictionLevel.id:
             return np.clip(starts, lower, upper)
         for j, theta in enumerate(thetas):
