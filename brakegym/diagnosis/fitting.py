@@ -127,7 +127,7 @@ class FitResult:
 
     @property
     def nuisance(self) -> np.ndarray:
-        """Each recording's nuisance after the effect parameters: v0 (n), T0 (n), k (n)."""
+        """Each recording's nuisance after the effect parameters, as v0 (n), T0 (n) and k (n) in turn."""
         return self.x[len(self.free) :]
 
 
