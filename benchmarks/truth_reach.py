@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from brakegym.config import config_path
+from brakegym.diagnosis.fitting import FRICTION_FACTOR
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.effects import EFFECTS, in_library_order
 from brakegym.recordings import read_dataset
@@ -70,7 +71,7 @@ def truth_reach(folder: Path, key: dict) -> tuple[float, np.ndarray, np.ndarray]
     residual = problem.simulate(ids, fixed, free, x[None])[0][0]
     measured = problem.channel_of >= 0
     samples = np.array([weighting.weights[measured & (problem.recording_of == i)].sum() for i in range(problem.n)])
-    factors = np.array([x[problem.nuisance_columns(len(free), i)[2]] for i in range(problem.n)])
+    factors = x[problem.nuisance_block(FRICTION_FACTOR, len(free))]
     return weighting.chi2(residual), weighting.recording_sse(residual) / samples, factors
 
 

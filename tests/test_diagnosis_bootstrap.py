@@ -124,5 +124,17 @@ def test_replay_refuses_a_scatter_of_the_wrong_shape(gradient_fit):
     wrong = FrictionDraw(np.ones((2, 1, 1)), np.ones((2, 1, 1)))
     with pytest.raises(ValueError, match="friction_draw"):
         replay_batch(one, friction_draw=wrong)
-    with pytest.raises(ValueError, match="running_resistance_A_N"):
-        replay_batch(one, running_resistance_A_N=np.ones(3))
+    with pytest.raises(ValueError, match="running_resistance_deviation_N"):
+        replay_batch(one, running_resistance_deviation_N=np.ones(3))
+
+
+def test_a_vehicle_without_running_resistance_scatter_is_refused_by_name(gradient_fit, monkeypatch):
+    # The fit holds each application's running resistance by a prior row of A_sigma_N: with none,
+    # the row would divide by zero.
+    problem = gradient_fit[0]
+    vehicle = problem.recordings[0].vehicle
+    resistance = vehicle.running_resistance.model_copy(update={"A_sigma_N": 0.0})
+    without_scatter = vehicle.model_copy(update={"running_resistance": resistance})
+    monkeypatch.setattr(type(problem.recordings[0].metadata), "vehicle_config", property(lambda self: without_scatter))
+    with pytest.raises(ValueError, match="A_sigma_N 0.0 N"):
+        FitProblem(problem.recordings, problem.noise)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from brakegym.diagnosis import diagnose
+from brakegym.diagnosis.fitting import FRICTION_FACTOR
 from brakegym.diagnosis.judging import shared_friction_shift
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.diagnosis.screening import Screening
@@ -106,12 +107,11 @@ def test_a_friction_level_screens_no_worse_than_the_unmodified_model(tmp_path, s
     problem, baseline = diagnoser.problem, diagnoser.unmodified_fit()
     noise_rho = {channel: model.rho for channel, model in diagnoser.noise_models.items() if np.isfinite(model.rho)}
     weighting = Weighting(problem, baseline.residual, noise_rho)
-    n = problem.n
     # Only the friction factors matter to the friction level's screening point.
     evidence = Evidence(
         peak_decel_mps2=1.0,
         peak_disc_C=100.0,
-        friction_factors=baseline.x[len(baseline.free) + 2 * n : len(baseline.free) + 3 * n],
+        friction_factors=baseline.x[problem.nuisance_block(FRICTION_FACTOR, len(baseline.free))],
         nominal_resistance=problem.recordings[0].vehicle.running_resistance,
     )
     screening = Screening(problem, weighting, diagnoser.rules, evidence, diagnoser.n_discs, baseline)

@@ -167,6 +167,17 @@ def test_running_resistance_replaces_the_nominal_coefficients():
     assert sim.deceleration_mps2()[0] == pytest.approx(expected, rel=1e-12)
 
 
+def test_only_a_running_resistance_shifts_the_resistance_and_by_its_difference_at_20_mps():
+    # The diagnosis's screening starts each recording's resistance deviation this much lower.
+    nominal = VEHICLE.running_resistance
+    resistance = EFFECTS["running_resistance"]
+    as_nominal = {"A_N": nominal.A_N, "B_N_per_mps": nominal.B_N_per_mps, "C_N_per_mps2": nominal.C_N_per_mps2}
+    assert resistance.resistance_shift_N(as_nominal, nominal) == 0.0
+    heavier = {**as_nominal, "A_N": nominal.A_N + 1000.0, "C_N_per_mps2": nominal.C_N_per_mps2 + 2.0}
+    assert resistance.resistance_shift_N(heavier, nominal) == pytest.approx(1000.0 + 2.0 * 20.0**2)
+    assert EFFECTS["gradient"].resistance_shift_N({"gradient_permil": 5.0}, nominal) == 0.0
+
+
 def test_speed_sensor_scale_scales_speed_odometry_and_derived_deceleration_only():
     scale = make_effect("speed_sensor_scale", scale=1.04)
     model, grid, (accelerometer,) = _run([scale])

@@ -246,7 +246,8 @@ def _add_diagnose_command(sub: argparse._SubParsersAction) -> None:
         help="locate the mismatch between recordings and the model and name the missing physics",
         description=(
             "Fit the unmodified model and every effect of the library to a folder of recordings (initial speed, "
-            "initial disc temperature and friction factor per recording as nuisance), rank the candidates by "
+            "initial disc temperature, friction factor and running resistance per recording as nuisance), rank the "
+            "candidates by "
             "held-out error and an effective-sample BIC, and report the selected effects with 95 % intervals."
         ),
     )

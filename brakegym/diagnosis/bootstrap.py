@@ -8,10 +8,10 @@ Each replicate
   level as every recording's friction factor), each recording's fitted initial speed and initial
   disc temperature, and a fresh draw of the scatter between applications as a campaign draws it
   (:func:`brakegym.plants.train_scatter` in the scatter set-up ``scatter_setup``: every disc's
-  mu_0 and power coefficient a, and the running resistance A). The fit's friction-factor prior is
-  a scalar summary of that scatter; a scalar draw leaves out what the fit cannot absorb (a
-  scatter of a changes the friction's course over a stop, which a thermal fade reads; a
-  running resistance A shifts a gradient), which is what moves the estimates;
+  mu_0 and power coefficient a, and the running resistance A, in place of the fitted friction
+  factors and resistance deviations). The fit's friction-factor prior is a scalar summary of
+  that scatter; a scalar draw leaves out what the fit cannot absorb (a scatter of a changes the
+  friction's course over a stop, which a thermal fade reads), which is what moves the estimates;
 - adds fresh noise to each channel on the recording's own samples (the rows the fit uses, in time
   order), drawn from the channel's estimated AR(1) noise model (:mod:`.noise`: level sigma,
   lag-1 autocorrelation rho per sample of the channel's own sampling), and to each accelerometer
@@ -53,7 +53,7 @@ from ..effects import FrictionLevel
 from ..plants import train_scatter
 from ..recordings.columns import DECEL
 from ..recordings.logger import ar1_noise
-from .fitting import FitProblem, FitResult, Samples
+from .fitting import FRICTION_FACTOR, RESISTANCE_DEVIATION, FitProblem, FitResult, Samples
 from .judging import Candidate, not_bounded_by_data
 from .noise import ChannelNoise
 from .rules import DiagnosisRules
@@ -152,10 +152,12 @@ def bootstrap(
     rng = np.random.default_rng(seed)
     level = fit.parameters.get("mu_scale", 1.0) if FrictionLevel.id in fit.effect_ids else 1.0
     truths = np.tile(fit.x, (replicates, 1))
-    truths[:, p + 2 * n :] = level
+    truths[:, problem.nuisance_block(FRICTION_FACTOR, p)] = level
+    truths[:, problem.nuisance_block(RESISTANCE_DEVIATION, p)] = 0.0
     vehicle = problem.recordings[0].vehicle
     friction, resistance_A_N = train_scatter(vehicle, cfg.load("setups", scatter_setup)).draw(rng, replicates * n)
-    residuals, _ = problem.simulate(fit.effect_ids, fit.fixed, fit.free, truths, scatter=(friction, resistance_A_N))
+    drawn_deviation_N = resistance_A_N - vehicle.running_resistance.A_N
+    residuals, _ = problem.simulate(fit.effect_ids, fit.fixed, fit.free, truths, scatter=(friction, drawn_deviation_N))
     data_rows = problem.channel_of >= 0
     measured = np.concatenate(
         [s.measured[c] / problem.noise[c] for s in problem.samples for c in s.rows]

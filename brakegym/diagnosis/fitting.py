@@ -1,6 +1,6 @@
 """Fit candidate effects to all recordings of a set at once, with per-recording nuisance states.
 
-The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]``:
+The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n), dA (n)]``:
 
 - the effect parameters are shared by every recording (a set-wide effect, inside its bounds);
 - ``v0``: each recording's initial speed as its speed sensor reads it (the true initial speed
@@ -17,7 +17,14 @@ The parameter vector of a fit is ``[effect parameters..., v0 (n), T0 (n), k (n)]
   With the ``friction_level`` effect in a fit, ``k`` is the recording's whole friction factor
   (level times scatter) and the prior holds k / level to 1: the fitted level is the shift the
   factors share, and the data rows do not depend on it, so its evidence is the n factors alone
-  (judged as such: :func:`.judging.friction_level_shift`).
+  (judged as such: :func:`.judging.friction_level_shift`);
+- ``dA``: each recording's running resistance A less the model's (the vehicle's nominal A, or a
+  ``running_resistance`` effect's), the resistance's scatter between applications (MCS: a draw
+  per application). It is held to 0 by a Gaussian prior of the vehicle's ``A_sigma_N``, as ``k``
+  is held to 1. Where the wheel-rail adhesion caps the braking force, the friction factor no
+  longer scales a recording's deceleration, and without ``dA`` an application's own resistance
+  (1600 N is 0.004 m/s^2 on a 400 t train, ten times the noise's share over a long stop) is left
+  for an effect to explain.
 
 Residuals are measured minus simulated, divided by each channel's noise, on the samples while
 moving (deceleration also without the samples next to the measured stop, where traces that stop
@@ -50,8 +57,12 @@ FIT_CHANNELS = (SPEED, DECEL, DISC_TEMPERATURE)
 # Deceleration samples this close to the measured stop are left out of the fit (the step at
 # standstill is a sample wide: a stop 0.05 s early reads as a 1 m/s^2 residual).
 STOP_GUARD_S = 0.5
-NUISANCE_BOUNDS = {"v0_mps": 1.5, "T0_K": 25.0, "k": (0.6, 1.4)}
-NUISANCE_STEPS = (0.01, 0.2, 0.002)  # finite-difference steps of v0 (m/s), T0 (K), k
+# The nuisance kinds, in the order of their blocks of n columns after the effect parameters.
+INITIAL_SPEED, INITIAL_DISC_TEMPERATURE, FRICTION_FACTOR, RESISTANCE_DEVIATION = range(4)
+NUISANCE_KINDS = 4
+NUISANCE_BOUNDS = {"v0_mps": 1.5, "T0_K": 25.0, "k": (0.6, 1.4), "dA_sigmas": 4.0}
+NUISANCE_STEPS = (0.01, 0.2, 0.002, 100.0)  # finite-difference steps of v0 (m/s), T0 (K), k, dA (N)
+NUISANCE_SCALES = (0.1, 1.0, 0.01, 200.0)  # their typical sizes, for the trust region
 NUISANCE_ITERATIONS = 12
 POLISH_STEPS = 2  # Gauss-Newton steps after the trust-region fit
 FRICTION_FACTOR_GRID = 17  # 0.05 apart over the bounds of k
@@ -114,8 +125,8 @@ class FitResult:
     effect_ids: tuple[str, ...]
     fixed: dict[str, float]  # integer parameters held at a whole value
     free: list[FreeParameter]
-    x: np.ndarray  # [effect parameters, v0 (n), T0 (n), k (n)]
-    residual: np.ndarray  # normalised, data rows then the n prior rows
+    x: np.ndarray  # [effect parameters, v0 (n), T0 (n), k (n), dA (n)]
+    residual: np.ndarray  # normalised, data rows then the n friction and n resistance prior rows
     jacobian: np.ndarray
     replays: list[Replay] = field(repr=False, default_factory=list)
 
@@ -127,7 +138,7 @@ class FitResult:
 
     @property
     def nuisance(self) -> np.ndarray:
-        """Each recording's nuisance after the effect parameters, as v0 (n), T0 (n) and k (n) in turn."""
+        """Each recording's nuisance after the effect parameters, as v0 (n), T0 (n), k (n) and dA (n) in turn."""
         return self.x[len(self.free) :]
 
 
@@ -139,15 +150,23 @@ class FitProblem:
         self.n = len(self.recordings)
         self.noise = noise
         self.samples = [fit_samples(r) for r in self.recordings]
-        self.prior_sigma = friction_scatter_sigma(self.recordings[0].vehicle)
+        vehicle = self.recordings[0].vehicle
+        self.prior_sigma = friction_scatter_sigma(vehicle)
+        self.resistance_sigma_N = vehicle.running_resistance.A_sigma_N
+        if self.prior_sigma <= 0 or self.resistance_sigma_N <= 0:
+            raise ValueError(
+                f"vehicle {vehicle.name!r}: the diagnosis holds each application's friction and running resistance "
+                f"to their scatter, which must be positive (friction {self.prior_sigma}, running_resistance.A_sigma_N "
+                f"{self.resistance_sigma_N} N)"
+            )
         recording_of, channel_of = [], []
         for i, samples in enumerate(self.samples):
             for channel, rows in samples.rows.items():
                 recording_of.append(np.full(len(rows), i))
                 channel_of.append(np.full(len(rows), FIT_CHANNELS.index(channel)))
-        # Prior rows: recording i, channel -1.
-        self.recording_of = np.concatenate(recording_of + [np.arange(self.n)])
-        self.channel_of = np.concatenate(channel_of + [np.full(self.n, -1)])
+        # Prior rows: recording i, channel -1 (friction factor), then channel -2 (resistance).
+        self.recording_of = np.concatenate(recording_of + [np.arange(self.n), np.arange(self.n)])
+        self.channel_of = np.concatenate(channel_of + [np.full(self.n, -1), np.full(self.n, -2)])
         self.n_data_rows = int(np.sum(self.channel_of >= 0))
         self.initial_nuisance = self._initial_nuisance()
         self.simulations = 0  # trains simulated, for the record
@@ -155,7 +174,12 @@ class FitProblem:
     def _initial_nuisance(self) -> np.ndarray:
         v0 = np.array([r.speed_mps[0] for r in self.recordings])
         T0 = np.array([initial_disc_temperature(r).value_C for r in self.recordings], dtype=float)
-        return np.concatenate([v0, T0, np.ones(self.n)])
+        return np.concatenate([v0, T0, np.ones(self.n), np.zeros(self.n)])
+
+    def nuisance_block(self, kind: int, n_free: int = 0) -> slice:
+        """Columns of every recording's nuisance of ``kind`` (``FRICTION_FACTOR``, ...) after
+        ``n_free`` effect parameters."""
+        return slice(n_free + kind * self.n, n_free + (kind + 1) * self.n)
 
     def gridded_start(
         self,
@@ -180,12 +204,12 @@ class FitProblem:
         low, high = NUISANCE_BOUNDS["k"]
         factors = np.linspace(low, high, FRICTION_FACTOR_GRID)
         points = np.tile(np.concatenate([theta, self.initial_nuisance]), (len(factors), 1))
-        points[:, len(theta) + 2 * n :] = factors[:, None]
+        points[:, self.nuisance_block(FRICTION_FACTOR, len(theta))] = factors[:, None]
         residuals, _ = self.simulate(list(effect_ids), dict(fixed or {}), list(free), points)
         start = self.initial_nuisance.copy()
-        for i in range(n):
-            rows = self.recording_of == i
-            start[2 * n + i] = factors[int(np.argmin(np.sum(residuals[:, rows] ** 2, axis=1)))]
+        start[self.nuisance_block(FRICTION_FACTOR)] = [
+            factors[int(np.argmin(np.sum(residuals[:, self.recording_of == i] ** 2, axis=1)))] for i in range(n)
+        ]
         return start
 
     def nuisance_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -193,8 +217,10 @@ class FitProblem:
         n = self.n
         dv, dT = NUISANCE_BOUNDS["v0_mps"], NUISANCE_BOUNDS["T0_K"]
         k_low, k_high = NUISANCE_BOUNDS["k"]
-        lower = np.concatenate([np.maximum(start[:n] - dv, 0.0), start[n : 2 * n] - dT, np.full(n, k_low)])
-        upper = np.concatenate([start[:n] + dv, start[n : 2 * n] + dT, np.full(n, k_high)])
+        dA = NUISANCE_BOUNDS["dA_sigmas"] * self.resistance_sigma_N
+        v0, T0 = start[self.nuisance_block(INITIAL_SPEED)], start[self.nuisance_block(INITIAL_DISC_TEMPERATURE)]
+        lower = np.concatenate([np.maximum(v0 - dv, 0.0), T0 - dT, np.full(n, k_low), np.full(n, -dA)])
+        upper = np.concatenate([v0 + dv, T0 + dT, np.full(n, k_high), np.full(n, dA)])
         return lower, upper
 
     # -- simulation ------------------------------------------------------------------------
@@ -206,16 +232,15 @@ class FitProblem:
         points: np.ndarray,
         scatter: tuple[FrictionDraw, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, list[list[Replay]]]:
-        """Residuals (m, rows) of ``m`` parameter points (m, len(free) + 3n), in one batch;
-        ``scatter``: a friction draw and running-resistance A per simulated train (m n), in place
-        of the nominal ones (:func:`~brakegym.recordings.replay.replay_batch`)."""
+        """Residuals (m, rows) of ``m`` parameter points (m, len(free) + 4n), in one batch;
+        ``scatter``: a friction draw in place of the nominal one and a running-resistance
+        deviation added to the points' dA, per simulated train (m n)
+        (:func:`~brakegym.recordings.replay.replay_batch`)."""
         points = np.atleast_2d(points)
         m, n = len(points), self.n
         p = len(free)
         theta = points[:, :p]
-        v0 = points[:, p : p + n].reshape(-1)
-        T0 = points[:, p + n : p + 2 * n].reshape(-1)
-        k = points[:, p + 2 * n : p + 3 * n].reshape(-1)
+        v0, T0, k, dA = (points[:, self.nuisance_block(kind, p)].reshape(-1) for kind in range(NUISANCE_KINDS))
         values: dict[str, dict[str, np.ndarray]] = {eid: {} for eid in effect_ids}
         for j, parameter in enumerate(free):
             values[parameter.effect_id][parameter.name] = np.repeat(theta[:, j], n)
@@ -237,14 +262,14 @@ class FitProblem:
         lower, upper = FrictionLevel.parameters[0].lower, FrictionLevel.parameters[0].upper
         effects.append(FrictionLevel(mu_scale=np.clip(k, lower, upper)))
         true_v0 = v0 / values[SpeedSensorScale.id]["scale"] if SpeedSensorScale.id in values else v0
-        friction_draw, resistance_A_N = scatter if scatter is not None else (None, None)
+        friction_draw, drawn_dA = scatter if scatter is not None else (None, 0.0)
         replays = replay_batch(
             self.recordings * m,
             effects,
             initial_speed_mps=true_v0,
             initial_disc_C=T0,
             friction_draw=friction_draw,
-            running_resistance_A_N=resistance_A_N,
+            running_resistance_deviation_N=dA + drawn_dA,
         )
         self.simulations += m * n
         residuals = np.empty((m, len(self.recording_of)))
@@ -252,18 +277,20 @@ class FitProblem:
         for c in range(m):
             group = replays[c * n : (c + 1) * n]
             grouped.append(group)
-            residuals[c] = self._residual(group, k[c * n : (c + 1) * n] / level[c * n : (c + 1) * n])
+            own = slice(c * n, (c + 1) * n)
+            residuals[c] = self._residual(group, k[own] / level[own], dA[own])
         return residuals, grouped
 
-    def _residual(self, replays: Sequence[Replay], scatter: np.ndarray) -> np.ndarray:
-        """Data rows, then one prior row per recording: its friction scatter factor over its
-        sigma."""
+    def _residual(self, replays: Sequence[Replay], scatter: np.ndarray, resistance_N: np.ndarray) -> np.ndarray:
+        """Data rows, then two prior rows per recording: its friction scatter factor, then its
+        running resistance's deviation, each over its sigma."""
         parts = []
         for replayed, samples in zip(replays, self.samples):
             for channel, rows in samples.rows.items():
                 simulated = replayed.channels[channel][rows]
                 parts.append((samples.measured[channel] - simulated) / self.noise[channel])
         parts.append((scatter - 1.0) / self.prior_sigma)
+        parts.append(resistance_N / self.resistance_sigma_N)
         return np.concatenate(parts)
 
     # -- fitting ---------------------------------------------------------------------------
@@ -290,7 +317,7 @@ class FitProblem:
             copies.append(point)
             steps.append(step)
         for kind, step in enumerate(NUISANCE_STEPS if nuisance_too else ()):
-            block = slice(p + kind * n, p + (kind + 1) * n)
+            block = self.nuisance_block(kind, p)
             direction = np.where(x[block] + step <= upper[block], step, -step)
             point = x.copy()
             point[block] += direction
@@ -301,12 +328,12 @@ class FitProblem:
         residuals, _ = self.simulate(effect_ids, fixed, free, np.array(copies))
         if base is None:
             base, residuals = residuals[0], residuals[1:]
-        jac = np.zeros((len(base), p + 3 * n))
+        jac = np.zeros((len(base), p + NUISANCE_KINDS * n))
         p_copies = p if effect_too else 0
         for j in range(p_copies):
             jac[:, j] = (residuals[j] - base) / steps[j]
         rows_of = self.recording_of
-        for kind in range(3 if nuisance_too else 0):
+        for kind in range(NUISANCE_KINDS if nuisance_too else 0):
             difference = residuals[p_copies + kind] - base
             for i in range(n):
                 rows = rows_of == i
@@ -321,9 +348,9 @@ class FitProblem:
         x: np.ndarray,
         max_iterations: int = NUISANCE_ITERATIONS,
     ) -> np.ndarray:
-        """``x`` with each recording's nuisance (v0, T0, k) refitted to convergence at fixed
-        effect parameters: Levenberg-Marquardt on each recording's own 3 x 3 block, with its own
-        damping, all recordings and the three finite-difference copies simulated in one batch per
+        """``x`` with each recording's nuisance (v0, T0, k, dA) refitted to convergence at fixed
+        effect parameters: Levenberg-Marquardt on each recording's own 4 x 4 block, with its own
+        damping, all recordings and the four finite-difference copies simulated in one batch per
         iteration.
 
         A joint trust-region fit over every recording's nuisance moves them all by one step size:
@@ -402,9 +429,7 @@ class FitProblem:
 
         if free:
             span = upper - lower
-            scale = np.concatenate(
-                [0.05 * span[: len(free)], np.full(self.n, 0.1), np.full(self.n, 1.0), np.full(self.n, 0.01)]
-            )
+            scale = np.concatenate([0.05 * span[: len(free)], np.repeat(NUISANCE_SCALES, self.n)])
             solution = least_squares(
                 residual,
                 start,
@@ -452,16 +477,42 @@ class FitProblem:
 
         One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
         gradient) needs a friction factor 8 % off, far outside the linear range of the samples
-        near the stop, and a single step rates such a gradient worse than no effect at all."""
-        p = len(free)
+        near the stop, and a single step rates such a gradient worse than no effect at all.
+
+        A recording whose simulated sum of squares grew over the last step goes back to the
+        point before it, and its residual is that point's projection; it is not moved again.
+        Near a recording's optimum its friction factor, initial speed and running resistance
+        lie along a narrow curved valley, and the straight steps of a fixed Jacobian climb out
+        of it: from a converged fit, three unguarded steps raised one recording's sum of
+        squares by 2.6 (the held-out loss of a friction level, which leaves the data rows
+        alone)."""
+        p, n = len(free), self.n
         lower, upper = self.nuisance_bounds()
         points = points.copy()
+        previous = points.copy()
+        rows_of = [self.recording_of == i for i in range(n)]
+        columns_of = [np.array(self.nuisance_columns(p, i)) for i in range(n)]
+        best_sse = np.full((len(points), n), np.inf)
+        held = np.zeros((len(points), n), dtype=bool)
+        projected = np.empty((len(points), len(self.recording_of)))
         for _ in range(iterations):
             residuals, _ = self.simulate(list(effect_ids), fixed, free, points)
-            projected = np.empty_like(residuals)
             for j, residual in enumerate(residuals):
-                projected[j], step = profile.project(residual)
-                points[j, p:] = np.clip(points[j, p:] + step, lower, upper)
+                moved, step = profile.project(residual)
+                step_at = points[j, p:] + step
+                for i in range(n):
+                    if held[j, i]:
+                        continue
+                    rows, columns = rows_of[i], columns_of[i]
+                    sse = float(residual[rows] @ residual[rows])
+                    if sse > best_sse[j, i]:
+                        points[j, columns] = previous[j, columns]
+                        held[j, i] = True
+                        continue
+                    best_sse[j, i] = sse
+                    projected[j, rows] = moved[rows]
+                    previous[j, columns] = points[j, columns]
+                    points[j, columns] = np.clip(step_at[columns - p], lower[columns - p], upper[columns - p])
         return projected, points
 
     def _gauss_newton_step(self, effect_ids, fixed, free, x: np.ndarray) -> np.ndarray:
@@ -483,9 +534,8 @@ class FitProblem:
         return x
 
     def nuisance_columns(self, n_free: int, i: int) -> list[int]:
-        """Columns of recording ``i``'s v0, T0 and k after ``n_free`` effect parameters."""
-        n = self.n
-        return [n_free + i, n_free + n + i, n_free + 2 * n + i]
+        """Columns of recording ``i``'s v0, T0, k and dA after ``n_free`` effect parameters."""
+        return [n_free + kind * self.n + i for kind in range(NUISANCE_KINDS)]
 
     def free_parameters(self, effect_ids: Sequence[str], fixed: dict[str, float]) -> list[FreeParameter]:
         return [
@@ -498,7 +548,7 @@ class FitProblem:
 
 class NuisanceProfile:
     """Each recording's nuisance refitted by one linear least-squares step, without bounds,
-    with a fixed nuisance Jacobian (block diagonal: 3 columns per recording)."""
+    with a fixed nuisance Jacobian (block diagonal: 4 columns per recording)."""
 
     def __init__(self, problem: FitProblem, nuisance_jacobian: np.ndarray) -> None:
         self.problem = problem
@@ -514,7 +564,7 @@ class NuisanceProfile:
     def project(self, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The residual after the linear nuisance refit, and the nuisance step."""
         out = residual.copy()
-        step = np.zeros(3 * self.problem.n)
+        step = np.zeros(NUISANCE_KINDS * self.problem.n)
         for rows, columns, q, r in self.blocks:
             coefficients = q.T @ residual[rows]
             out[rows] = residual[rows] - q @ coefficients

@@ -41,7 +41,7 @@ from scipy import optimize
 
 from ..effects import EFFECTS
 from ..statistics import conditional_information
-from .fitting import FitProblem, FitResult
+from .fitting import NUISANCE_KINDS, FitProblem, FitResult
 from .rules import DiagnosisRules
 from .weighting import Weighting
 
@@ -177,7 +177,7 @@ def _predicted_from_others_fit(problem: FitProblem, fit: FitResult, left_out: in
     is the prediction the held-out rule means."""
     n, p = problem.n, len(fit.free)
     others = [j for j in range(n) if j != left_out]
-    nuisance = fit.x[p:].reshape(3, n)
+    nuisance = fit.nuisance.reshape(NUISANCE_KINDS, n)
     others_problem = FitProblem([problem.recordings[j] for j in others], problem.noise)
     start = np.concatenate([fit.x[:p], nuisance[:, others].reshape(-1)])
     others_fit = others_problem.fit(list(fit.effect_ids), start, dict(fit.fixed), max_iterations=fit_iterations)
@@ -186,7 +186,7 @@ def _predicted_from_others_fit(problem: FitProblem, fit: FitResult, left_out: in
     point = own_problem.refit_nuisance(fit.effect_ids, fit.fixed, fit.free, point)
     residuals, _ = own_problem.simulate(fit.effect_ids, fit.fixed, fit.free, point[None])
     problem.simulations += others_problem.simulations + own_problem.simulations
-    # The one recording's rows (data, then its prior row) are, in order, its rows in ``problem``.
+    # The one recording's rows (data, then its prior rows) are, in order, its rows in ``problem``.
     return residuals[0]
 
 

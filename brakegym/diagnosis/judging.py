@@ -70,7 +70,7 @@ import numpy as np
 
 from ..effects import EFFECTS, Evidence, FrictionLevel, in_library_order, special_cases
 from ..statistics import paired_t, paired_t_p_value
-from .fitting import FitProblem, FitResult
+from .fitting import FRICTION_FACTOR, FitProblem, FitResult
 from .heldout import HeldOut, held_out
 from .rules import DiagnosisRules
 from .weighting import Weighting
@@ -117,9 +117,9 @@ class FrictionLevelShift:
 
 def friction_level_shift(problem: FitProblem, fit: FitResult) -> FrictionLevelShift:
     """The shared-shift test of the friction level of ``fit`` (:func:`shared_friction_shift`)."""
-    n, p = problem.n, len(fit.free)
     level = float(fit.parameters[FrictionLevel.parameters[0].name])
-    return shared_friction_shift(level, fit.x[p + 2 * n : p + 3 * n], problem.prior_sigma)
+    factors = fit.x[problem.nuisance_block(FRICTION_FACTOR, len(fit.free))]
+    return shared_friction_shift(level, factors, problem.prior_sigma)
 
 
 def shared_friction_shift(level: float, factors: np.ndarray, prior_sigma: float) -> FrictionLevelShift:

@@ -72,7 +72,7 @@ from ..recordings.columns import DECEL, DISC_TEMPERATURE
 from ..recordings.format import Recording, read_dataset
 from .adhesion import read_adhesion
 from .bootstrap import add_bootstrap_intervals
-from .fitting import FitProblem, FitResult
+from .fitting import FRICTION_FACTOR, FitProblem, FitResult
 from .inputs import (
     accelerometer_bias_sigma,
     beyond_the_search_note,
@@ -171,7 +171,7 @@ class Diagnoser:
         return Evidence(
             peak_decel_mps2=float(max(np.nanpercentile(d, 99) for d in decels)) if decels else math.inf,
             peak_disc_C=float(max(np.nanmax(t) for t in temperatures)) if temperatures else math.inf,
-            friction_factors=baseline.x[2 * self.problem.n :],
+            friction_factors=baseline.nuisance[self.problem.nuisance_block(FRICTION_FACTOR)],
             nominal_resistance=self.recordings[0].vehicle.running_resistance,
             run_distance_m=max(
                 float(np.nanmax(r.recording.metadata.on_line_m(r.states["true_position_m"].to_numpy())))
@@ -613,8 +613,7 @@ class Diagnoser:
         level = FrictionLevel.id
         if count > 0 and level in promising[count:]:
             point = screened[level]
-            n = self.problem.n
-            factors = point.nuisance[2 * n : 3 * n]
+            factors = point.nuisance[self.problem.nuisance_block(FRICTION_FACTOR)]
             shift = shared_friction_shift(float(point.theta[0]), factors, self.problem.prior_sigma)
             if abs(shift.z) >= self.rules.friction_level_min_z:
                 chosen.append(level)

@@ -305,9 +305,9 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
     if report["unconfirmed"]:
         return f"Across {n} recordings ({noise_text}) no effect of the library is confirmed on held-out recordings."
     return (
-        f"Across {n} recordings ({noise_text}) the unmodified model fits within noise and friction scatter once each "
-        "recording's initial speed, initial disc temperature and friction factor are fitted; no effect of the library "
-        "improves the held-out fit enough to be selected."
+        f"Across {n} recordings ({noise_text}) the unmodified model fits within noise and the scatter between "
+        "applications once each recording's initial speed, initial disc temperature, friction factor and running "
+        "resistance are fitted; no effect of the library improves the held-out fit enough to be selected."
     )
 
 

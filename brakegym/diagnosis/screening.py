@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import EFFECTS, Evidence, FrictionLevel, in_library_order
-from .fitting import FitProblem, FitResult, NuisanceProfile
+from .fitting import FRICTION_FACTOR, RESISTANCE_DEVIATION, FitProblem, FitResult, NuisanceProfile
 from .rules import DiagnosisRules
 from .weighting import Weighting
 
@@ -144,7 +144,7 @@ class Screening:
         #: the effects of ``baseline`` and all their parameters, held in every screened point
         self.given_ids: tuple[str, ...] = tuple(baseline.effect_ids)
         self.given_parameters: dict[str, float] = baseline.parameters
-        self.profile: NuisanceProfile = problem.profiler(baseline.jacobian[:, n_given : n_given + 3 * problem.n])
+        self.profile: NuisanceProfile = problem.profiler(baseline.jacobian[:, n_given:])
 
     def _with_given(self, effect_id: str, fixed: dict[str, float]) -> tuple[list[str], dict[str, float]]:
         """The effect ids of a screened point (the given effects with ``effect_id``, in the
@@ -154,10 +154,12 @@ class Screening:
 
     def starts(self, effect_id: str, fixed: dict[str, float], thetas: np.ndarray) -> np.ndarray:
         """The nuisance each point (rows of ``thetas``) starts from: the unmodified model's, with
-        the friction factors divided by the share of brake force the point leaves. The unmodified
-        fit's factors have absorbed a uniform loss of force (four failed units of sixteen: factors
-        near 0.75), and three chord iterations from there rate the true failed units worse than no
-        effect at all.
+        the friction factors divided by the share of brake force the point leaves and the running
+        resistances less the resistance it adds. The unmodified fit's factors have absorbed a
+        uniform loss of force (four failed units of sixteen: factors near 0.75), and three chord
+        iterations from there rate the true failed units worse than no effect at all; its running
+        resistances have absorbed up to their bounds (6400 N) what a set-wide resistance explains,
+        which a point of the ``running_resistance`` effect would otherwise count twice.
 
         A friction level's factors are the unmodified model's as they are: with a level, each
         factor is the product the data see (:meth:`.fitting.FitProblem.simulate`) and the level
@@ -165,15 +167,18 @@ class Screening:
         it, and the chord iterations did not undo that: on a train-like set with a level of 0.88
         the level the factors share screened at 18 times the unmodified chi^2, and the level was
         never fitted."""
-        n = self.problem.n
         lower, upper = self.problem.nuisance_bounds()
+        factors = self.problem.nuisance_block(FRICTION_FACTOR)
+        resistances = self.problem.nuisance_block(RESISTANCE_DEVIATION)
+        nominal = self.evidence.nominal_resistance
         names = [parameter.name for parameter in self.problem.free_parameters([effect_id], fixed)]
         starts = np.tile(self.baseline.nuisance, (len(thetas), 1))
         if effect_id == FrictionLevel.id:
             return np.clip(starts, lower, upper)
         for j, theta in enumerate(thetas):
             parameters = {**dict(zip(names, theta)), **fixed}
-            starts[j, 2 * n :] /= EFFECTS[effect_id].brake_force_share(parameters, self.n_discs)
+            starts[j, factors] /= EFFECTS[effect_id].brake_force_share(parameters, self.n_discs)
+            starts[j, resistances] -= EFFECTS[effect_id].resistance_shift_N(parameters, nominal)
         return np.clip(starts, lower, upper)
 
     def screen(

@@ -66,8 +66,8 @@ class Weighting:
         return out
 
     def recording_sse(self, residual: np.ndarray) -> np.ndarray:
-        """Per recording, the effective sum of squares of its rows (its friction-factor prior row
-        included: a set-wide friction shift shows there, not in the data rows)."""
+        """Per recording, the effective sum of squares of its rows (its prior rows included: a
+        set-wide friction shift shows in the friction factor's, not in the data rows)."""
         weighted = self.weights * residual**2
         return np.array([np.sum(weighted[self.problem.recording_of == i]) for i in range(self.problem.n)])
 

@@ -385,6 +385,12 @@ class Effect:
         that do not scale it uniformly)."""
         return 1.0
 
+    @classmethod
+    def resistance_shift_N(cls, parameters: Mapping[str, float], nominal: cfg.RunningResistance) -> float:
+        """How far the effect at ``parameters`` moves the running resistance from the vehicle's
+        ``nominal`` one at a typical speed, N (0 for effects that leave it alone)."""
+        return 0.0
+
 
 def per_train(value: Value, n_trains: int, what: str) -> np.ndarray:
     array = np.asarray(value, dtype=float)

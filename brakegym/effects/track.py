@@ -221,10 +221,15 @@ class RunningResistanceEffect(Effect):
 
     @classmethod
     def is_relevant(cls, parameters: Mapping[str, float], evidence: Evidence) -> bool:
-        nominal, v = evidence.nominal_resistance, cls.RELEVANT_SPEED_MPS
+        nominal = evidence.nominal_resistance
+        return abs(cls.resistance_shift_N(parameters, nominal)) >= cls.RELEVANT_SIGMAS * nominal.A_sigma_N
+
+    @classmethod
+    def resistance_shift_N(cls, parameters: Mapping[str, float], nominal: cfg.RunningResistance) -> float:
+        """The coefficients' resistance less the nominal one at ``RELEVANT_SPEED_MPS``, N."""
+        v = cls.RELEVANT_SPEED_MPS
         fitted = parameters["A_N"] + parameters["B_N_per_mps"] * v + parameters["C_N_per_mps2"] * v * v
-        expected = nominal.A_N + nominal.B_N_per_mps * v + nominal.C_N_per_mps2 * v * v
-        return abs(fitted - expected) >= cls.RELEVANT_SIGMAS * nominal.A_sigma_N
+        return fitted - (nominal.A_N + nominal.B_N_per_mps * v + nominal.C_N_per_mps2 * v * v)
 
     @classmethod
     def no_effect_values(cls, vehicle: cfg.Vehicle | None = None) -> dict[str, float]:

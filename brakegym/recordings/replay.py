@@ -212,17 +212,19 @@ def replay_batch(
     initial_disc_C: Sequence[float] | np.ndarray | None = None,
     step_s: float = REPLAY_STEP_S,
     friction_draw: FrictionDraw | None = None,
-    running_resistance_A_N: np.ndarray | None = None,
+    running_resistance_deviation_N: np.ndarray | None = None,
 ) -> list[Replay]:
     """Simulate recordings of one vehicle in one batch, with ``effects`` switched on (their
     parameters scalars, or one value per recording).
 
     ``initial_speed_mps`` (true speed) and ``initial_disc_C``, one value per recording (nan: the
     recording's own), override the initial state. ``friction_draw`` (per disc, shape
-    (recordings, axles, discs per axle)) and ``running_resistance_A_N`` (one per recording) replace
-    the material's nominal mu_0 and a and the vehicle's nominal A: a drawn scatter, as a
-    campaign draws it. A recording's known gradient profile (its metadata's ``gradient_profile``,
-    or its run's part of ``line_gradient_profile``) is part of the model, not an effect.
+    (recordings, axles, discs per axle)) replaces the material's nominal mu_0 and a, and
+    ``running_resistance_deviation_N`` (one per recording) is added to the running resistance's A
+    after the effects (a set-wide ``running_resistance`` effect included): a drawn scatter, as a
+    campaign draws it, or an application's own deviation, as the diagnosis fits it. A
+    recording's known gradient profile (its metadata's ``gradient_profile``, or its run's part
+    of ``line_gradient_profile``) is part of the model, not an effect.
     """
     if not recordings:
         raise ValueError("replay_batch needs at least one recording")
@@ -257,16 +259,16 @@ def replay_batch(
         or np.shape(friction_draw.power_coefficient_per_s) != disc_shape
     ):
         raise ValueError(f"friction_draw: per-disc arrays of shape {disc_shape} expected for {n} recordings")
-    if running_resistance_A_N is None:
-        running_resistance_A_N = np.full(n, vehicle.running_resistance.A_N)
-    if np.shape(running_resistance_A_N) != (n,):
-        raise ValueError(f"running_resistance_A_N: one value per recording ({n}) expected")
+    if running_resistance_deviation_N is None:
+        running_resistance_deviation_N = np.zeros(n)
+    if np.shape(running_resistance_deviation_N) != (n,):
+        raise ValueError(f"running_resistance_deviation_N: one value per recording ({n}) expected")
     conditions = BatchConditions(
         mass_kg=np.array([r.mass_kg for r in recordings]),
         initial_speed_mps=np.zeros(n),
         initial_mu=np.asarray(friction_draw.initial_mu, dtype=float),
         power_coefficient_per_s=np.asarray(friction_draw.power_coefficient_per_s, dtype=float),
-        running_resistance_A_N=np.asarray(running_resistance_A_N, dtype=float),
+        running_resistance_A_N=np.full(n, vehicle.running_resistance.A_N),
         initial_friction_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
         initial_disc_temperature_K=np.broadcast_to((initial_C + ZERO_CELSIUS_K)[:, None, None], disc_shape).copy(),
         ambient_temperature_K=np.array([r.metadata.ambient_C + ZERO_CELSIUS_K for r in recordings]),
@@ -279,6 +281,9 @@ def replay_batch(
         line_direction_sign=np.array([r.metadata.line_direction_sign for r in recordings]),
     )
     add_gradient_profiles(model, [r.metadata.run_gradient_profile for r in recordings])
+    resistance_A_N = np.asarray(model.conditions.running_resistance_A_N, dtype=float)
+    deviation_N = np.asarray(running_resistance_deviation_N, dtype=float)
+    model.conditions = dataclasses.replace(model.conditions, running_resistance_A_N=resistance_A_N + deviation_N)
 
     # The true initial speed: the first speed sample seen through the (possibly scaled) sensor.
     overrides_v = _overrides(initial_speed_mps, n, "initial_speed_mps")
