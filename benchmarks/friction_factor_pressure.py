@@ -1,13 +1,12 @@
 """Do the recordings' friction factors follow their brake pressure? A study, not a test.
 
 Pad friction that falls with the contact pressure (the ``real_train`` model form's
-``contact_pressure_friction``, mu x (F_clamp / 20 kN)^-0.1) acts on every recording and reads as a
-friction level of its mean; under it, though, each recording's friction factor should fall with
-its clamp force. This fits the unmodified model to each folder of recordings (as ``brakegym
-diagnose`` does first), and regresses the log of each recording's fitted friction factor on the
-log of its mean cylinder pressure while braking: the slope, its standard error and t on n - 2
-degrees of freedom. The clamp force is k_c (p - p_0) (spec Section 4), so a power law in force
-is steeper in pressure by p / (p - p_0).
+``contact_pressure_friction``, mu x (F_clamp / 40 kN)^-0.1) acts on every recording: under it each
+recording's friction factor should fall with its clamp force. This fits the unmodified model to
+each folder of recordings (as ``brakegym diagnose`` does first), and regresses the log of each
+recording's fitted friction factor on the log of its mean cylinder pressure while braking: the
+slope, its standard error and t on n - 2 degrees of freedom. The clamp force is k_c (p - p_0) (spec
+Section 4), so a power law in force is steeper in pressure by p / (p - p_0).
 
     brakegym synth DIR --recordings 8 --seed 273368831 --random-effects \\
         --measurement-chain real --model-form real_train
@@ -22,6 +21,7 @@ import warnings
 import numpy as np
 from scipy import stats
 
+from brakegym.diagnosis.fitting import FRICTION_FACTOR
 from brakegym.diagnosis.pipeline import Diagnoser
 from brakegym.recordings import read_dataset
 from brakegym.recordings.replay import bridged_pressures_bar
@@ -36,8 +36,7 @@ def factors_and_pressures(folder: str) -> tuple[list[str], np.ndarray, np.ndarra
     recordings = read_dataset(folder).recordings
     diagnoser = Diagnoser(recordings)
     fit = diagnoser.unmodified_fit()
-    n = diagnoser.problem.n
-    factors = fit.x[len(fit.free) + 2 * n : len(fit.free) + 3 * n]
+    factors = fit.x[diagnoser.problem.nuisance_block(FRICTION_FACTOR, len(fit.free))]
     pressures = []
     for recording in recordings:
         pressure = np.nanmean(bridged_pressures_bar(recording), axis=1)
