@@ -467,53 +467,55 @@ class FitProblem:
         """Each point (rows: effect parameters, then nuisance) with its nuisance refitted by
         ``iterations`` chord iterations: Gauss-Newton steps with a fixed nuisance Jacobian
         (``profile``: the unmodified model's in the screening, the candidate's in the held-out
-        prediction), each followed by a simulation at the moved point. Returns the residuals of
-        the last simulation after its linear nuisance step, and the moved points.
+        prediction), each followed by a simulation at the moved point. Returns, per recording,
+        the residuals of the best of those simulations (least sum of squares) and the points
+        they were simulated at.
 
-        The linear step is solved without the nuisance bounds and the point then clipped to
-        them: where a nuisance parameter rests on its bound, the returned residual is not the
-        moved point's, and the collinear columns have made up for the clipped one. Compare two
-        such residuals with each other, not with a fit's.
+        The residuals are simulated, never the linear step's projection: the projection is
+        optimistic by the nuisance's curvature, and more so the further a point lies from the
+        fit the Jacobian was taken at, so projected residuals favoured a candidate's held-out
+        prediction (stepped parameters, a projection) over the unmodified model's converged fit.
+        Each step is solved without the nuisance bounds and the point then clipped to them.
 
         One linear step is not enough: an effect that moves the stop by seconds (a 7 permil
         gradient) needs a friction factor 8 % off, far outside the linear range of the samples
         near the stop, and a single step rates such a gradient worse than no effect at all.
 
         A recording whose simulated sum of squares grew over the last step goes back to the
-        point before it, and its residual is that point's projection; it is not moved again.
-        Near a recording's optimum its friction factor, initial speed and running resistance
-        lie along a narrow curved valley, and the straight steps of a fixed Jacobian climb out
-        of it: from a converged fit, three unguarded steps raised one recording's sum of
-        squares by 2.6 (the held-out loss of a friction level, which leaves the data rows
-        alone)."""
+        point before it and is not moved again. Near a recording's optimum its friction factor,
+        initial speed and running resistance lie along a narrow curved valley, and the straight
+        steps of a fixed Jacobian climb out of it: from a converged fit, three unguarded steps
+        raised one recording's sum of squares by 2.6 (the held-out loss of a friction level,
+        which leaves the data rows alone)."""
         p, n = len(free), self.n
         lower, upper = self.nuisance_bounds()
         points = points.copy()
-        previous = points.copy()
         rows_of = [self.recording_of == i for i in range(n)]
         columns_of = [np.array(self.nuisance_columns(p, i)) for i in range(n)]
         best_sse = np.full((len(points), n), np.inf)
         held = np.zeros((len(points), n), dtype=bool)
-        projected = np.empty((len(points), len(self.recording_of)))
-        for _ in range(iterations):
+        best_residual = np.empty((len(points), len(self.recording_of)))
+        best_points = points.copy()
+        for iteration in range(iterations + 1):
             residuals, _ = self.simulate(list(effect_ids), fixed, free, points)
             for j, residual in enumerate(residuals):
-                moved, step = profile.project(residual)
-                step_at = points[j, p:] + step
                 for i in range(n):
-                    if held[j, i]:
-                        continue
                     rows, columns = rows_of[i], columns_of[i]
                     sse = float(residual[rows] @ residual[rows])
-                    if sse > best_sse[j, i]:
-                        points[j, columns] = previous[j, columns]
+                    if held[j, i] or sse > best_sse[j, i]:
                         held[j, i] = True
                         continue
                     best_sse[j, i] = sse
-                    projected[j, rows] = moved[rows]
-                    previous[j, columns] = points[j, columns]
-                    points[j, columns] = np.clip(step_at[columns - p], lower[columns - p], upper[columns - p])
-        return projected, points
+                    best_residual[j, rows] = residual[rows]
+                    best_points[j, columns] = points[j, columns]
+                if iteration == iterations:
+                    continue
+                _, step = profile.project(residual)
+                step_at = np.clip(points[j, p:] + step, lower, upper)
+                for i in np.flatnonzero(~held[j]):
+                    columns = columns_of[i]
+                    points[j, columns] = step_at[columns - p]
+        return best_residual, best_points
 
     def _gauss_newton_step(self, effect_ids, fixed, free, x: np.ndarray) -> np.ndarray:
         """One Gauss-Newton step on every parameter at once, kept when it lowers the SSE (then

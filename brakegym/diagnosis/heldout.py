@@ -339,5 +339,5 @@ def _simulated(problem: FitProblem, fit: FitResult, points: np.ndarray, chord_it
     kelvin), beyond the range where the prediction is linear."""
     p = len(fit.free)
     profile = problem.profiler(fit.jacobian[:, p:])
-    projected, _ = problem.chord_refit(fit.effect_ids, fit.fixed, fit.free, points, profile, chord_iterations)
-    return projected
+    simulated, _ = problem.chord_refit(fit.effect_ids, fit.fixed, fit.free, points, profile, chord_iterations)
+    return simulated

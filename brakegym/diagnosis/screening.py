@@ -187,7 +187,7 @@ class Screening:
         """Profiled effective chi^2 of each point (rows of ``thetas``) and its refitted nuisance."""
         ids, held = self._with_given(effect_id, fixed)
         free = self.problem.free_parameters(ids, held)
-        projected, points = self.problem.chord_refit(
+        simulated, points = self.problem.chord_refit(
             ids,
             held,
             free,
@@ -195,7 +195,7 @@ class Screening:
             self.profile,
             self.rules.screen_chord_iterations,
         )
-        return np.array([self.weighting.chi2(residual) for residual in projected]), points[:, len(free) :]
+        return np.array([self.weighting.chi2(residual) for residual in simulated]), points[:, len(free) :]
 
     def run(
         self, effect_ids: Sequence[str] | None = None, held: Mapping[str, float] | None = None
