@@ -144,10 +144,10 @@ def _beyond_linear_range(
     nothing here.
 
     ``simulated``: the residuals at the fit and at each stepped point, every nuisance refitted by
-    the same chord iterations. The change is measured between the two: the chord refit's linear
-    nuisance step does not respect the bounds, and where a friction factor rests on its bound
-    the chord refit of the fit itself stands far above the fit's chi^2, which a test against the
-    fit's own chi^2 takes for a step beyond its linear range."""
+    the same chord iterations. The change is measured between the two, each the best of the
+    same number of simulations, not against the fit's own chi^2: the chord iterations from the
+    fit can end below it (a nuisance on its bound, a fit stopped short), and a test against the
+    fit would then credit the step with what the iterations found."""
     at_fit_simulated, at_steps = simulated
     own_gradient = _gradients(fit, blocks)
     total_information, total_gradient = np.sum(information, axis=0), np.sum(own_gradient, axis=0)
