@@ -213,6 +213,10 @@ def test_the_diagnosis_names_a_section_that_begins_part_way_along_the_line(secti
     markdown = write_report(diagnosis, tmp_path / "report", "section").read_text()
     start = report["position_step"]["start_m"]
     assert f"Step of the residual deceleration along position (while braking): {start:g} to" in markdown
+    # ...and the selected section's residual RMS per channel, fitted and held out, against the unmodified model's.
+    chosen = next(c for c in report["candidates"] if c["effects"] == report["selected"])
+    speed_row = next(line for line in markdown.splitlines() if line.startswith("| speed_mps |"))
+    assert f"| {chosen['rms_after']['speed_mps']:g} | {chosen['heldout_rms_after']['speed_mps']:g} |" in speed_row
 
 
 def test_the_markdown_report_lists_what_pointed_the_search():

@@ -126,21 +126,16 @@ def found_lines(report: dict) -> list[str]:
     return lines
 
 
-def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    report = diagnosis.report
-    residuals = _residuals_figure(diagnosis, out_dir / "residuals.png")
-    traces = _traces_figure(diagnosis, out_dir / "measured_vs_simulated.png")
-    (out_dir / "diagnosis.json").write_text(json.dumps(report, indent=2) + "\n")
-    candidate_rows = [
+def _candidate_rows(report: dict) -> list[list[str]]:
+    """Every fitted candidate: its effects, parameters with their 95 % intervals and judgement."""
+    rows = [
         ["effects", "parameters (95 %)", "delta BIC", "held-out gain", "relevant size", "at its search range's end"]
     ]
     for c in report["candidates"]:
         parameters = ", ".join(
             f"{k} = {v:g} [{c['ci95'][k][0]:g}, {c['ci95'][k][1]:g}]" for k, v in c["parameters"].items()
         )
-        candidate_rows.append(
+        rows.append(
             [
                 " + ".join(c["effects"]),
                 parameters,
@@ -150,14 +145,18 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
                 ", ".join(c.get("at_search_range_end") or []),
             ]
         )
-    rms_rows = [
+    return rows
+
+
+def _rms_rows(report: dict, chosen: dict) -> list[list[str]]:
+    """Each channel's residual RMS, fitted and held out, of the unmodified model and of ``chosen``."""
+    rows = [
         ["channel", "noise", "unmodified (fitted)", "unmodified (held out)", "selected (fitted)", "selected (held out)"]
     ]
-    chosen = next((c for c in report["candidates"] if c["effects"] == report["selected"]), None)
     for channel, noise in report["noise"].items():
-        if chosen is None or channel not in chosen["rms_before"]:
+        if channel not in chosen["rms_before"]:
             continue
-        rms_rows.append(
+        rows.append(
             [
                 channel,
                 f"{noise:g}",
@@ -167,26 +166,51 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
                 f"{chosen['heldout_rms_after'][channel]:g}",
             ]
         )
+    return rows
+
+
+def _attribution_rows(report: dict) -> list[list[str]]:
+    """The residual's variance share along each axis (eta^2), per residual; empty without one."""
     attribution = report["mismatch"]["attribution_eta2"]
-    attribution_rows = [["residual", *next(iter(attribution.values())).keys()]] if attribution else []
+    if not attribution:
+        return []
+    rows = [["residual", *next(iter(attribution.values())).keys()]]
     for name, shares in attribution.items():
-        attribution_rows.append([name, *(f"{v:.3f}" for v in shares.values())])
-    indistinguishable = "; ".join(
+        rows.append([name, *(f"{v:.3f}" for v in shares.values())])
+    return rows
+
+
+def _indistinguishable_text(report: dict) -> str:
+    """The pairs of singles named indistinguishable (with their correlation) and each single named
+    indistinguishable from a pair; empty where there are none."""
+    singles = [
         f"{name} (corrections correlate {report['signature_correlations'][name]:.2f})"
         for name in (" / ".join(pair) for pair in report["indistinguishable"])
-    )
+    ]
     single_or_pair = [
         f"{' + '.join(entry['single'])} / {' + '.join(entry['pair'])}"
         for entry in report.get("indistinguishable_single_or_pair", [])
     ]
-    indistinguishable = "; ".join(filter(None, [indistinguishable, *single_or_pair]))
+    return "; ".join([*singles, *single_or_pair])
+
+
+def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
+    """Write ``report.md``, ``diagnosis.json`` and the two figures of ``diagnosis`` into
+    ``out_dir``; returns the path of ``report.md``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    report = diagnosis.report
+    residuals = _residuals_figure(diagnosis, out_dir / "residuals.png")
+    traces = _traces_figure(diagnosis, out_dir / "measured_vs_simulated.png")
+    (out_dir / "diagnosis.json").write_text(json.dumps(report, indent=2) + "\n")
+    attribution_rows = _attribution_rows(report)
     parts = [
         f"# Diagnosis of `{dataset_name}`",
         "",
         report["summary"],
         "",
         f"**Selected:** {', '.join(report['selected']) or 'nothing'}. **Indistinguishable:** "
-        f"{indistinguishable or 'none'}. **Unconfirmed** (fits the "
+        f"{_indistinguishable_text(report) or 'none'}. **Unconfirmed** (fits the "
         f"few recordings it acts on, too few to confirm held out): "
         f"{'; '.join(' + '.join(u['effects']) for u in report['unconfirmed']) or 'none'}.",
         "",
@@ -198,17 +222,18 @@ def write_report(diagnosis, out_dir: str | Path, dataset_name: str) -> Path:
         "",
         "## Candidates",
         "",
-        _table(candidate_rows),
+        _table(_candidate_rows(report)),
         "",
     ]
     found = found_lines(report)
     if found:
         parts += ["## What the data pointed the search at", "", *found, ""]
+    chosen = next((c for c in report["candidates"] if c["effects"] == report["selected"]), None)
     if chosen is not None:
         parts += [
             "## Residual RMS before and after",
             "",
-            _table(rms_rows),
+            _table(_rms_rows(report, chosen)),
             "",
             f"Stop-distance error (simulated minus measured): before {chosen['stop_distance_error_before']}, "
             f"after {chosen['stop_distance_error_after']}.",
