@@ -325,6 +325,15 @@ class Diagnoser:
         )
         report["forward_screening"] = forward_screening_entry(single, forward) if forward else None
         report["fallback_screening"] = fallback.report_entry(verdict.selected) if fallback is not None else None
+        self._add_data_entries(report, position_steps, verdict.selected)
+        return Diagnosis(report, self.recordings, baseline, verdict.selected, problem)
+
+    def _add_data_entries(
+        self, report: dict[str, Any], position_steps: list[PositionStep], selected: Candidate | None
+    ) -> None:
+        """The report's keys on the recordings themselves: the steps along position, where the
+        line's positions count from and how far they reach, the measurement chain, each channel's
+        noise model, and a selected adhesion limit read as a rail."""
         report["position_step"] = position_steps[0].report_entry() if position_steps else None
         # In what the first step leaves: with it, a profile of two sections is screened.
         report["second_position_step"] = position_steps[1].report_entry() if len(position_steps) > 1 else None
@@ -345,12 +354,11 @@ class Diagnoser:
             report["noise_model"][CHANNEL_NAMES[DECEL]]["bias_sigma_between_recordings"] = round(
                 self.decel_bias_sigma, 5
             )
-        if verdict.selected is not None and "adhesion_limit" in verdict.selected.effect_ids:
+        if selected is not None and "adhesion_limit" in selected.effect_ids:
             # The cap read as a rail: its peak adhesion, the nearest condition and Polach's mu_0.
             mass_kg = float(np.mean([recording.mass_kg for recording in self.recordings]))
             reading = read_adhesion(report["parameters"]["adhesion"], self.recordings[0].vehicle, mass_kg)
             report["adhesion_limit_rail"] = reading.as_dict()
-        return Diagnosis(report, self.recordings, baseline, verdict.selected, problem)
 
     def _fit_singles(
         self, screening: Screening, screened: dict[str, ScreenedPoint], judge: Judge, baseline: FitResult
