@@ -237,13 +237,54 @@ def _unconfirmed_text(report: dict[str, Any]) -> str:
 
 
 def _summary(report: dict[str, Any], selected: Candidate | None) -> str:
+    """The report's ``summary``: the verdict, then the effects left unconfirmed."""
     text = _verdict(report, selected)
     if report["unconfirmed"]:
         text += " Unconfirmed: " + _unconfirmed_text(report)
     return text
 
 
+def _caveats(report: dict[str, Any], selected: Candidate) -> str:
+    """What the summary adds to a selection: parameters the data do not bound, parameters that one
+    recording holds alone, and the candidates that explain the data about as well."""
+    text = ""
+    unbounded = selected.report.get("not_bounded_by_data") or []
+    if unbounded:
+        text += (
+            f" The data do not bound {', '.join(unbounded)}: the 95 % interval spans the search range, "
+            f"so the value is not measured."
+        )
+    resting = selected.report.get("resting_on_one_recording") or {}
+    for recording in sorted(set(resting.values())):
+        names = [name for name, where in resting.items() if where == recording]
+        one = len(names) == 1
+        text += (
+            f" {', '.join(names)} rest{'s' if one else ''} on {Path(recording).name} alone: no other recording "
+            f"confirms {'it' if one else 'them'}, and {'its' if one else 'their'} interval is what the others "
+            f"allow with that recording left out."
+        )
+    if report["indistinguishable"]:
+        pairs = "; ".join(
+            f"{a} and {b} (their corrections to the model correlate "
+            f"{report['signature_correlations'][a + ' / ' + b]:.2f}): "
+            f"{report['separating_measurements'][a + ' / ' + b]}"
+            for a, b in report["indistinguishable"]
+        )
+        text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
+    for entry in report["indistinguishable_single_or_pair"]:
+        second = next(e for e in entry["pair"] if e not in entry["single"])
+        text += (
+            f" The pair {' + '.join(entry['pair'])} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} "
+            f"and held-out t {entry['heldout_t_over_single']} against {' + '.join(entry['single'])} alone), "
+            f"but not by every rule: {' + '.join(entry['single'])} alone or with {second} would be "
+            f"separated by {entry['separating_measurement']}."
+        )
+    return text
+
+
 def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
+    """The verdict in words: the selected effects with their intervals and caveats, else why
+    nothing is selected (unexplained, unconfirmed, or the model fits)."""
     n = report["recordings"]
     noise = report["noise"]
     noise_text = (
@@ -264,37 +305,7 @@ def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
             f"friction scatter. The missing physics is {' + '.join(selected.effect_ids)} with {parameters}: "
             f"it lowers the held-out residual RMS ({change}) and the BIC by {-selected.delta_bic:.0f}."
         )
-        unbounded = selected.report.get("not_bounded_by_data") or []
-        if unbounded:
-            text += (
-                f" The data do not bound {', '.join(unbounded)}: the 95 % interval spans the search range, "
-                f"so the value is not measured."
-            )
-        resting = selected.report.get("resting_on_one_recording") or {}
-        for recording in sorted(set(resting.values())):
-            names = [name for name, where in resting.items() if where == recording]
-            one = len(names) == 1
-            text += (
-                f" {', '.join(names)} rest{'s' if one else ''} on {Path(recording).name} alone: no other recording "
-                f"confirms {'it' if one else 'them'}, and {'its' if one else 'their'} interval is what the others "
-                f"allow with that recording left out."
-            )
-        if report["indistinguishable"]:
-            pairs = "; ".join(
-                f"{a} and {b} (their corrections to the model correlate "
-                f"{report['signature_correlations'][a + ' / ' + b]:.2f}): "
-                f"{report['separating_measurements'][a + ' / ' + b]}"
-                for a, b in report["indistinguishable"]
-            )
-            text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
-        for entry in report["indistinguishable_single_or_pair"]:
-            second = next(e for e in entry["pair"] if e not in entry["single"])
-            text += (
-                f" The pair {' + '.join(entry['pair'])} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} "
-                f"and held-out t {entry['heldout_t_over_single']} against {' + '.join(entry['single'])} alone), "
-                f"but not by every rule: {' + '.join(entry['single'])} alone or with {second} would be "
-                f"separated by {entry['separating_measurement']}."
-            )
+        text += _caveats(report, selected)
         return text
     if report["unexplained"]:
         verdict = "is confirmed on held-out recordings" if report["unconfirmed"] else "explains it"
