@@ -198,8 +198,15 @@ class Diagnoser:
 
     @on_one_blas_thread
     def unmodified_fit(self) -> FitResult:
-        """The unmodified model fitted to the recordings: each recording's nuisance alone."""
-        return self.problem.fit([], self.problem.gridded_start())
+        """The unmodified model fitted to the recordings: each recording's nuisance alone, from
+        two starts (the gridded friction factors, then the centre of the priors), the better one
+        kept recording by recording (:meth:`.fitting.FitProblem.refit_nuisance_from_prior_centre`)."""
+        problem = self.problem
+        first = problem.fit([], problem.gridded_start())
+        better = problem.refit_nuisance_from_prior_centre([], {}, [], first.x)
+        if np.array_equal(better, first.x):
+            return first
+        return problem.fit([], better)
 
     def weighting(self, baseline: FitResult) -> Weighting:
         """The effective sample weights every candidate is judged by, from ``baseline`` (the
