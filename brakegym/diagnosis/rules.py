@@ -116,6 +116,9 @@ class DiagnosisRules:
     max_failed_units_screened: int = 4
     #: chord iterations that refit each screened point's nuisance
     screen_chord_iterations: int = 3
+    #: Levenberg-Marquardt iterations on fresh Jacobians that then refit the nuisance of each
+    #: effect's best screened point (0 turns this off)
+    screen_nuisance_iterations: int = 4
     #: effective chi^2 a screened effect must gain over the unmodified model to be fitted in full
     screen_min_gain: float = 1.0
     #: screened effects fitted in full, best first

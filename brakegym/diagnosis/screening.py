@@ -5,7 +5,8 @@ Each effect is screened at the points of a grid (:meth:`brakegym.effects.Paramet
 and at the points the data point at (:meth:`brakegym.effects.Effect.screening_points`), all points
 of an effect simulated in one batch, each point's nuisance (initial speed, initial disc
 temperature, friction factor of every recording) refitted by chord iterations
-(:meth:`.fitting.FitProblem.chord_refit`). The best point of each effect is then refined by one
+(:meth:`.fitting.FitProblem.chord_refit`). The best point of each effect then has its nuisance
+refitted on fresh Jacobians (the chord's is the baseline's) and is refined by one
 profiled Gauss-Newton step: a grid this coarse leaves a small effect between two points. The
 best points of the grid's other valleys (its local minima; on a grid of 2-3 points per parameter,
 its other points) go with it, as starts for a full fit where the chi^2 has more than one valley.
@@ -241,6 +242,7 @@ class Screening:
                 point = best[effect_id]
                 point.other_valleys = self._other_valleys(effect_id, point, grid_chi2s, grid_points)
         for effect_id, point in best.items():
+            point = best[effect_id] = self._nuisance_refitted(effect_id, point)
             refined = self._refined(effect_id, point)
             if refined is not None:
                 best[effect_id] = refined
@@ -258,6 +260,31 @@ class Screening:
         if min(_grid_shape(effect_id, self.rules)) < 4:
             minima += [int(j) for j in np.argsort(chi2s, kind="stable") if j != own and j not in minima]
         return tuple(grid_points[j] for j in minima)
+
+    def _nuisance_refitted(self, effect_id: str, point: ScreenedPoint) -> ScreenedPoint:
+        """``point`` with its nuisance refitted by Levenberg-Marquardt on fresh Jacobians
+        (:meth:`.fitting.FitProblem.refit_nuisance`, ``rules.screen_nuisance_iterations``),
+        kept where it lowers the chi^2.
+
+        The chord iterations step with the baseline's nuisance Jacobian, and where the baseline's
+        nuisance has absorbed much of an effect (a steep gradient taken into every recording's
+        running resistance, seven of eight at their bound, and initial disc temperature) they
+        converge too slowly to follow: the effect's best point, even at its true value, then
+        screens above the unmodified model and is never fitted in full."""
+        iterations = self.rules.screen_nuisance_iterations
+        if iterations <= 0:
+            return point
+        problem = self.problem
+        ids, held = self._with_given(effect_id, point.fixed)
+        free = problem.free_parameters(ids, held)
+        x = problem.refit_nuisance(
+            ids, held, free, np.concatenate([point.theta, point.nuisance]), max_iterations=iterations
+        )
+        residuals, _ = problem.simulate(ids, held, free, x[None])
+        chi2 = self.weighting.chi2(residuals[0])
+        if chi2 < point.chi2:
+            return dataclasses.replace(point, chi2=float(chi2), nuisance=x[len(free) :])
+        return point
 
     def _refined(self, effect_id: str, point: ScreenedPoint) -> ScreenedPoint | None:
         """One profiled Gauss-Newton step from ``point``, kept where it lowers the chi^2."""
