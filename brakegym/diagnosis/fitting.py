@@ -415,13 +415,14 @@ class FitProblem:
         well as the physics does, while the friction and resistance priors pay for both. The
         unmodified model then stands too high, and every candidate gains what it would have
         gained by a refit of that recording's nuisance alone."""
-        p, n = len(free), self.n
-        centre = np.asarray(x, dtype=float).copy()
+        p = len(free)
+        x = np.asarray(x, dtype=float)
+        centre = x.copy()
         centre[p:] = self.initial_nuisance
         second = self.refit_nuisance(effect_ids, fixed, free, centre)
         residuals, _ = self.simulate(effect_ids, fixed, free, np.array([x, second]))
-        chosen = np.asarray(x, dtype=float).copy()
-        for i in range(n):
+        chosen = x.copy()
+        for i in range(self.n):
             rows = self.recording_of == i
             first_sse, second_sse = (float(r[rows] @ r[rows]) for r in residuals)
             if second_sse < first_sse:
