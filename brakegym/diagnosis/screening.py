@@ -39,7 +39,7 @@ class ScreenedPoint:
     chi2: float
     fixed: dict[str, float]  # integer parameters held at a whole value
     theta: np.ndarray  # the free effect parameters
-    nuisance: np.ndarray  # [v0 (n), T0 (n), k (n)]
+    nuisance: np.ndarray  # [v0 (n), T0 (n), k (n), dA (n)]
     #: the best points of the grid's other valleys (its local minima but the one of this point),
     #: best first, then on a grid too coarse to show valleys its other points: starts for a full
     #: fit where the chi^2 has more than one valley
