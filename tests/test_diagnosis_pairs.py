@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from brakegym.diagnosis import diagnose
-from brakegym.diagnosis.judging import nested_candidates
+from brakegym.diagnosis.judging import Candidate, Judge, nested_candidates
 from brakegym.diagnosis.pipeline import look_alike_swaps
+from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import in_library_order, nested_effects, special_cases
 from brakegym.recordings.synth import EffectRequest, synthesize
 
@@ -193,3 +194,50 @@ def test_a_look_alike_of_the_single_is_fitted_beside_the_pairs_second_effect(tmp
         separating = report["separating_measurements"]["rotating_mass / brake_unit_failure"]
         assert "rotating_mass and brake_unit_failure (their corrections to the model correlate" in report["summary"]
         assert separating in report["summary"]
+
+
+def judged(ids, heldout_sse, delta_bic):
+    """A candidate with held-out errors per recording (one residual row each) and a BIC."""
+    sse = np.asarray(heldout_sse, dtype=float)
+    fit = SimpleNamespace(residual=np.sqrt(sse))
+    return Candidate(in_library_order(ids), fit, 0.0, delta_bic, SimpleNamespace(sse=sse, residual=np.sqrt(sse)))
+
+
+def judge_of_four_recordings():
+    """A judge of four recordings whose unmodified model leaves a held-out error of 10 on each."""
+    judge = Judge.__new__(Judge)
+    names = [SimpleNamespace(name=f"stop{i}") for i in range(4)]
+    judge.problem = SimpleNamespace(n=4, recording_of=np.arange(4), recordings=names)
+    judge.rules = DiagnosisRules()
+    judge.weighting = SimpleNamespace(signature_correlation=lambda *residuals: 0.9)
+    judge.baseline = SimpleNamespace(residual=np.sqrt(np.full(4, 10.0)))
+    judge.base_sse = np.full(4, 10.0)
+    return judge
+
+
+def test_a_pair_with_a_look_alike_of_the_best_single_replaces_it():
+    # A stretch of low adhesion over most of the line is selected alone, an adhesion limit passes
+    # beside it with a held-out error a little higher; a running resistance lowers the error
+    # beside the limit only. The pair of the limit and the resistance beats both singles by every
+    # rule and replaces the stretch; its look-alikes are then swapped in beside the limit.
+    section = judged(("adhesion_section",), [2.0, 2.1, 1.9, 2.0], -900.0)
+    limit = judged(("adhesion_limit",), [2.1, 2.2, 2.0, 2.1], -880.0)
+    section_and_resistance = judged(("adhesion_section", "running_resistance"), [2.0, 2.1, 1.8, 2.0], -905.0)
+    limit_and_resistance = judged(("adhesion_limit", "running_resistance"), [1.0, 1.1, 0.9, 1.0], -1000.0)
+    judge = judge_of_four_recordings()
+    verdict = judge.verdict([section, limit], [section_and_resistance, limit_and_resistance])
+    assert verdict.selected is limit_and_resistance
+    assert judge.held_single(limit_and_resistance, [section, limit]) is limit
+    # Its held-out figures are against the selected single.
+    assert limit_and_resistance.report["heldout_gain"] == pytest.approx(1 - 4.0 / 8.0, abs=1e-4)
+
+    # A pair that beats the look-alike it holds but not the selected single is not selected.
+    judge = judge_of_four_recordings()
+    weak = judged(("adhesion_limit", "running_resistance"), [1.95, 2.05, 1.85, 1.95], -910.0)
+    verdict = judge.verdict([section, limit], [section_and_resistance, weak])
+    assert verdict.selected is section
+    # Nor is a pair that holds no passing single.
+    judge = judge_of_four_recordings()
+    failing_limit = judged(("adhesion_limit",), [9.9, 10.1, 9.8, 10.2], 50.0)
+    verdict = judge.verdict([section, failing_limit], [section_and_resistance, limit_and_resistance])
+    assert verdict.selected is section

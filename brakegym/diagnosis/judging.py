@@ -22,7 +22,10 @@ A candidate is selected when
 Of the passing singles the one with the lowest held-out error is selected, and a pair with it
 replaces it by the same rules, judged against the single: the pair must lower the BIC by
 ``select_delta_bic`` below the single's and remove held-out error consistently over the recordings
-the second effect acts on (of the passing pairs, the one with the lowest held-out error). An
+the second effect acts on (of the passing pairs, the one with the lowest held-out error). A pair
+that holds another passing single instead, a look-alike of the selected one, replaces the
+selection where it replaces both singles by those rules: the second effect of the truth can lower
+the held-out error beside the one look-alike and not beside the other. An
 effect that holds another as a special case (:attr:`brakegym.effects.base.Effect.extends`: a section
 holds the whole-line gradient, a profile of two sections one section) must beat it by the same
 rules where both are fitted, as a single and in a pair with the same partner. The pairs
@@ -306,10 +309,11 @@ class Judge:
         selected = single
         single_or_pair: list[tuple[Candidate, Candidate]] = []
         if single is not None:
-            # Every pair with the single is judged against the single itself, not against a pair
-            # that replaced it earlier in the loop.
+            # Every pair is judged against the single itself, not against a pair that replaced it
+            # earlier in the loop.
             with_single = [pair for pair in pairs if single.effect_ids[0] in pair.effect_ids]
             better = [pair for pair in with_single if self.replaces(pair, single)]
+            better += [pair for pair in pairs if self._replaces_look_alike(pair, single, passing)]
             # A pair that holds another passing pair as a special case must beat that one too.
             better = [pair for pair in better if self._beats_nested(pair, better)]
             if better:
@@ -321,6 +325,23 @@ class Judge:
                 self.beats(pair, 0.0, self.base_sse, self.baseline.residual)
         indistinguishable, correlations = self._indistinguishable(selected, passing)
         return Verdict(selected, indistinguishable, correlations, self._unconfirmed(selected, singles), single_or_pair)
+
+    def _replaces_look_alike(self, pair: Candidate, single: Candidate, passing: Sequence[Candidate]) -> bool:
+        """Whether ``pair``, which does not hold the selected ``single`` but holds another passing
+        single, replaces both: the single it holds (its second effect earns its place) and the
+        selected one (it explains the data better than the selection). Where two singles are look-
+        alikes (an adhesion limit and a stretch of low adhesion over most of the line), the second
+        effect of the truth can lower the held-out error beside the one and not beside the other."""
+        if single.effect_ids[0] in pair.effect_ids:
+            return False
+        held = [c for c in passing if c.effect_ids[0] in pair.effect_ids]
+        return bool(held) and all(self.replaces(pair, c) for c in held) and self.replaces(pair, single)
+
+    def held_single(self, pair: Candidate, singles: Sequence[Candidate]) -> Candidate:
+        """The passing single that the selected ``pair`` was judged beside: the best single where
+        the pair holds it, else the passing single it holds with the lowest held-out error."""
+        passing = sorted((c for c in singles if c.passes), key=lambda c: float(np.sum(c.heldout.sse)))
+        return next(c for c in passing if c.effect_ids[0] in pair.effect_ids)
 
     def _pair_as_good(self, single: Candidate, pair: Candidate) -> bool:
         """Whether ``pair`` (judged against ``single`` by :meth:`beats`, and not passing) explains

@@ -311,7 +311,10 @@ class Diagnoser:
             pairs += forward_pairs
         verdict = judge.verdict(singles, pairs)
         if single is not None and verdict.selected is not None and len(verdict.selected.effect_ids) == 2:
-            swapped = self._swapped_pairs(single, verdict.selected, singles, pairs, judge, forward)
+            held = judge.held_single(verdict.selected, singles)
+            # The forward step screened on top of the selected single only.
+            beside_held = forward if held is single else {}
+            swapped = self._swapped_pairs(held, verdict.selected, singles, pairs, judge, beside_held)
             pairs += swapped
             verdict = judge.with_swapped_pairs(verdict, swapped)
         mismatch, unexplained = self._locate(weighting, baseline, verdict.selected, bool(verdict.unconfirmed))
@@ -688,7 +691,8 @@ def pairing_pool(singles: Sequence[Candidate], count: int) -> list[Candidate]:
 def look_alike_swaps(
     single: Candidate, pair: Candidate, singles: Sequence[Candidate], pairs: Sequence[Candidate], count: int
 ) -> list[tuple[str, Candidate]]:
-    """The pairs to fit beside the selected ``pair`` (the selected ``single`` and a second effect):
+    """The pairs to fit beside the selected ``pair`` (``single``, the passing single it holds
+    (:meth:`.judging.Judge.held_single`), and a second effect):
     each of its effects (the second first) kept, beside each of the next ``count`` passing
     ``singles`` (lowest held-out error first) in the other's place; as (kept effect id, single).
 
