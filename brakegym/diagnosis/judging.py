@@ -312,8 +312,7 @@ class Judge:
             # Every pair is judged against the single itself, not against a pair that replaced it
             # earlier in the loop.
             with_single = [pair for pair in pairs if single.effect_ids[0] in pair.effect_ids]
-            better = [pair for pair in with_single if self.replaces(pair, single)]
-            better += [pair for pair in pairs if self._replaces_look_alike(pair, single, passing)]
+            better = [pair for pair in pairs if self._replaces_selection(pair, single, passing)]
             # A pair that holds another passing pair as a special case must beat that one too.
             better = [pair for pair in better if self._beats_nested(pair, better)]
             if better:
@@ -326,18 +325,20 @@ class Judge:
         indistinguishable, correlations = self._indistinguishable(selected, passing)
         return Verdict(selected, indistinguishable, correlations, self._unconfirmed(selected, singles), single_or_pair)
 
-    def _replaces_look_alike(self, pair: Candidate, single: Candidate, passing: Sequence[Candidate]) -> bool:
-        """Whether ``pair``, which does not hold the selected ``single`` but holds another passing
-        single, replaces both: the single it holds (its second effect earns its place) and the
-        selected one (it explains the data better than the selection). Where two singles are look-
-        alikes (an adhesion limit and a stretch of low adhesion over most of the line), the second
-        effect of the truth can lower the held-out error beside the one and not beside the other."""
+    def _replaces_selection(self, pair: Candidate, single: Candidate, passing: Sequence[Candidate]) -> bool:
+        """Whether ``pair`` replaces the selected ``single``: a pair with it by :meth:`replaces`; a
+        pair that holds another passing single instead where it replaces both, the single it holds
+        (its second effect earns its place) and the selected one (it explains the data better than
+        the selection). Where two singles are look-alikes (an adhesion limit and a stretch of low
+        adhesion over most of the line), the second effect of the truth can lower the held-out
+        error beside the one and not beside the other."""
         if single.effect_ids[0] in pair.effect_ids:
-            return False
+            return self.replaces(pair, single)
         held = [c for c in passing if c.effect_ids[0] in pair.effect_ids]
         return bool(held) and all(self.replaces(pair, c) for c in held) and self.replaces(pair, single)
 
-    def held_single(self, pair: Candidate, singles: Sequence[Candidate]) -> Candidate:
+    @staticmethod
+    def held_single(pair: Candidate, singles: Sequence[Candidate]) -> Candidate:
         """The passing single that the selected ``pair`` was judged beside: the best single where
         the pair holds it, else the passing single it holds with the lowest held-out error."""
         passing = sorted((c for c in singles if c.passes), key=lambda c: float(np.sum(c.heldout.sse)))
