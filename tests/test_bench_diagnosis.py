@@ -86,12 +86,27 @@ def rows():
 
 def test_pairs_are_counted_both_ways(bench, rows):
     numbers = bench.metrics(rows)
-    assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2}
+    assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2, "both_named_or_alternative": 1}
     assert numbers["kinds"]["pair"] == {"sets": 2, "hits": 2}
     assert numbers["kinds"]["single"] == {"sets": 1, "hits": 1}
     assert numbers["kinds"]["none"] == {"sets": 2, "hits": 1}
     assert numbers["kinds"]["unexplained"] == {"sets": 2, "hits": 1}
     assert numbers["unexplained"] == {"sets": 2, "nothing_selected": 1, "said_unexplained": 1}
+
+
+def test_a_pair_reported_as_the_alternative_to_one_of_its_effects_counts_apart(bench):
+    """One effect of the pair selected with the pair of both reported as indistinguishable from it
+    counts in the third way only; a different pair reported, or a false name beside the one
+    selected, does not."""
+    truth = {"thermal_fade": {"onset_C": 200.0, "loss_per_100K": 0.2}, "temperature_sensor_lag": {"tau_s": 3.0}}
+    offered = row(truth, ["temperature_sensor_lag"])
+    offered["single_or_pair"] = [["thermal_fade", "temperature_sensor_lag"], ["temperature_sensor_lag", "wet_pads"]]
+    other = row(truth, ["temperature_sensor_lag"])
+    other["single_or_pair"] = [["temperature_sensor_lag", "wet_pads"]]
+    false_beside = row(truth, ["temperature_sensor_lag", "rotating_mass"])
+    false_beside["single_or_pair"] = [["thermal_fade", "temperature_sensor_lag"]]
+    numbers = bench.metrics([offered, other, false_beside])
+    assert numbers["pairs"] == {"sets": 3, "both_named": 0, "at_least_one_named": 3, "both_named_or_alternative": 1}
 
 
 def test_confusion_counts_every_drawn_effect_against_every_verdict(bench, rows):
@@ -222,7 +237,7 @@ def test_rows_written_before_the_new_keys_count_as_the_diagnosis(bench, rows):
     assert bench.row_method(old[0]) == "brakegym"
     assert numbers["confusion"]["nothing"] == {"friction_level": 1, "nothing": 1}
     assert "unexplained" not in numbers["confusion"]
-    assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2}
+    assert numbers["pairs"] == {"sets": 2, "both_named": 1, "at_least_one_named": 2, "both_named_or_alternative": 1}
 
 
 def test_heldout_rule_study_judges_each_candidate_by_both_rules(load_benchmark):
