@@ -25,7 +25,9 @@ for its effect ("every interval holds the truth" asks that the data bound them).
 one recording holds alone (the report's ``resting_on_one_recording``: a fade only the hottest stop
 reaches) has a jackknife interval stepped towards its bounds, which often holds the truth by being
 wide without spanning the range: such parameters and their sets are counted apart too (``rests on
-one``), so that a coverage rate shows how much of it they make.
+one``), so that a coverage rate shows how much of it they make. The diagnosis reports the
+bootstrap's interval alone for them; per effect the summary also counts the sets that the hull of
+both parts for every parameter (the diagnosis's rule before) would have covered.
 
 Usage: ``python benchmarks/bench_coverage.py --sets-per-effect 4 --seed 1 --json cov1.json``.
 Runs with different seeds can go on side by side (one per core) and be summarized together:
@@ -111,6 +113,24 @@ def clopper_pearson(hits: int, n: int) -> tuple[float, float]:
     return low, high
 
 
+def hull_of_both(row: dict[str, Any]) -> dict[str, list[float]]:
+    """Per parameter of a row's ``ci95``, the hull of its Gauss-Newton/jackknife interval and its
+    bootstrap's (the first alone where the row has no bootstrap's)."""
+    out = {}
+    for name in row["ci95"]:
+        low, high = row["ci95_gauss_newton_jackknife"][name]
+        b_low, b_high = row["ci95_bootstrap"].get(name, (low, high))
+        out[name] = [min(low, b_low), max(high, b_high)]
+    return out
+
+
+def all_covered(row: dict[str, Any], intervals: dict[str, list[float]]) -> bool:
+    """Every parameter's interval holds the truth and none spans its search range."""
+    if not_bounded_by_data([row["effect"]], intervals, RANGE_END_SHARE):
+        return False
+    return all(low <= row["truth"][name] <= high for name, (low, high) in intervals.items())
+
+
 def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Per effect and parameter: sets, intervals holding the truth (each kind), median error."""
     per_parameter: dict[str, dict[str, Any]] = defaultdict(
@@ -120,6 +140,7 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
         lambda: {
             "sets": 0,
             "all_covered": 0,
+            "all_covered_hull_of_both": 0,
             "spanning_range": 0,
             "resting_on_one_recording": 0,
             "covered_resting_on_one_recording": 0,
@@ -150,9 +171,10 @@ def summarize(rows: list[dict[str, Any]]) -> dict[str, Any]:
             for kind in INTERVALS:
                 low, high = row[kind].get(name, (np.nan, np.nan))
                 entry[kind] += bool(low <= truth <= high)
-        covered = not unbounded and all(low <= row["truth"][name] <= high for name, (low, high) in reported.items())
+        covered = all_covered(row, reported)
         effect["spanning_range"] += bool(unbounded)
         effect["all_covered"] += covered
+        effect["all_covered_hull_of_both"] += all_covered(row, hull_of_both(row))
         effect["resting_on_one_recording"] += bool(resting)
         effect["covered_resting_on_one_recording"] += bool(resting) and covered
     parameters = {}
@@ -196,6 +218,7 @@ def print_summary(summary: dict[str, Any]) -> None:
         if entry["resting_not_recorded"]:
             notes.append(f"{entry['resting_not_recorded']} from rows without resting_on_one_recording")
         notes += [f"{entry['not_expressed']} not expressed"] if entry["not_expressed"] else []
+        notes.append(f"{entry['all_covered_hull_of_both']} with the hull of both parts for every parameter")
         shown = f" ({'; '.join(notes)})" if notes else ""
         print(f"  {effect:26s} {entry['all_covered']:3d}/{entry['sets']:<3d}{shown}")
     print(f"  {'all':26s} {covered:3d}/{total:<3d}")

@@ -118,6 +118,17 @@ def test_the_reported_interval_is_the_hull_of_both():
     assert merged == {"a": [1.0, 2.5], "b": [0.0, 1.0]}
 
 
+def test_a_parameter_resting_on_one_recording_takes_the_bootstraps_interval_alone():
+    # Its jackknife stepped to a bound (80-510 degC) says where the bounds are, not how the
+    # estimate scatters; without a bootstrap's interval it keeps the one it has.
+    merged = merged_intervals(
+        {"onset_C": [80.0, 510.0], "loss_per_100K": [0.2, 0.3], "gradient_permil": [1.0, 2.0]},
+        {"onset_C": [190.0, 230.0], "loss_per_100K": [0.25, 0.35]},
+        {"onset_C": "hot.csv", "gradient_permil": "hot.csv"},
+    )
+    assert merged == {"onset_C": [190.0, 230.0], "loss_per_100K": [0.2, 0.35], "gradient_permil": [1.0, 2.0]}
+
+
 def test_replay_refuses_a_scatter_of_the_wrong_shape(gradient_fit):
     problem = gradient_fit[0]
     one = problem.recordings[:1]

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -188,15 +188,27 @@ def bootstrap(
 
 
 def merged_intervals(
-    gauss_newton_jackknife: Mapping[str, Sequence[float]], bootstrapped: Mapping[str, Sequence[float]]
+    gauss_newton_jackknife: Mapping[str, Sequence[float]],
+    bootstrapped: Mapping[str, Sequence[float]],
+    resting_on_one_recording: Collection[str] = (),
 ) -> dict[str, list[float]]:
-    """Per parameter, the hull of the Gauss-Newton/jackknife interval and the bootstrap's (a
-    parameter the bootstrap does not cover keeps its interval)."""
+    """Per parameter, the hull of the Gauss-Newton/jackknife interval and the bootstrap's; a
+    parameter that rests on one recording (``resting_on_one_recording``) takes the bootstrap's
+    alone, and one the bootstrap does not cover keeps its interval.
+
+    The jackknife of a parameter one recording holds alone is no spread between recordings: with
+    that recording left out the others hold nothing of the parameter, and the refit steps to
+    wherever its bounds let it, so the interval is anywhere from the estimate's own point to the
+    whole search range. The bootstrap re-draws that recording's friction scatter and noise,
+    which is what moves such an estimate."""
     out = {}
     for name, (low, high) in gauss_newton_jackknife.items():
         if name in bootstrapped:
             b_low, b_high = bootstrapped[name]
-            low, high = min(low, b_low), max(high, b_high)
+            if name in resting_on_one_recording:
+                low, high = b_low, b_high
+            else:
+                low, high = min(low, b_low), max(high, b_high)
         out[name] = [low, high]
     return out
 
@@ -211,7 +223,9 @@ def add_bootstrap_intervals(
     """Bootstrap the selected candidate's fit and write its intervals into its report entry:
     ``ci95`` becomes the hull of the Gauss-Newton/jackknife interval (kept as
     ``ci95_gauss_newton_jackknife``) and the bootstrap's (``ci95_bootstrap``, from
-    ``bootstrap_replicates`` replicates; ``decel_bias_sigma`` as for :func:`bootstrap`)."""
+    ``bootstrap_replicates`` replicates; ``decel_bias_sigma`` as for :func:`bootstrap`), the
+    bootstrap's alone for a parameter the entry's ``resting_on_one_recording`` names (see
+    :func:`merged_intervals`)."""
     fit = selected.fit
     seed = bootstrap_seed(problem.recordings, selected.effect_ids)
     result = bootstrap(
@@ -235,6 +249,8 @@ def add_bootstrap_intervals(
     report["bootstrap_std"] = {
         n: round(float(v), 6) for n, v in zip(result.names, result.estimates.std(axis=0, ddof=1))
     }
-    report["ci95"] = merged_intervals(report["ci95_gauss_newton_jackknife"], result.ci95)
+    report["ci95"] = merged_intervals(
+        report["ci95_gauss_newton_jackknife"], result.ci95, report.get("resting_on_one_recording") or {}
+    )
     report["not_bounded_by_data"] = not_bounded_by_data(selected.effect_ids, report["ci95"], rules.range_end_share)
     return result

@@ -11,10 +11,9 @@ take in a parametric bootstrap's (:mod:`.bootstrap`).
 Where one recording holds a parameter alone (with it left out, the others hold less than
 ``one_recording_share`` of the parameter's information: a thermal fade that one stop reaches),
 the report names that recording (``resting_on_one_recording``). Its jackknife then steps towards
-the parameter's bounds and the interval is wide, often over the whole search range; that width is
-kept. The Gauss-Newton interval with the bootstrap's, tried in its place, missed the truth on
-fades that one stop reaches, whose own friction scatter moves the estimate further than the
-bootstrap's replicates move (``docs/diagnosis.md``, interval coverage).
+the parameter's bounds and says where they are, not how the estimate scatters; the selected
+candidate's interval of such a parameter is the bootstrap's alone, which re-draws that
+recording's friction scatter and noise (``docs/diagnosis.md``, interval coverage).
 """
 
 from __future__ import annotations
@@ -260,8 +259,7 @@ def _caveats(report: dict[str, Any], selected: Candidate) -> str:
         one = len(names) == 1
         text += (
             f" {', '.join(names)} rest{'s' if one else ''} on {Path(recording).name} alone: no other recording "
-            f"confirms {'it' if one else 'them'}, and {'its' if one else 'their'} interval is what the others "
-            f"allow with that recording left out."
+            f"confirms {'it' if one else 'them'}."
         )
     if report["indistinguishable"]:
         pairs = "; ".join(
