@@ -50,6 +50,7 @@ import numpy as np
 from scipy import stats
 
 from brakegym.diagnosis import Diagnoser
+from brakegym.diagnosis.bootstrap import merged_intervals
 from brakegym.diagnosis.judging import not_bounded_by_data
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import EFFECTS
@@ -115,13 +116,9 @@ def clopper_pearson(hits: int, n: int) -> tuple[float, float]:
 
 def hull_of_both(row: dict[str, Any]) -> dict[str, list[float]]:
     """Per parameter of a row's ``ci95``, the hull of its Gauss-Newton/jackknife interval and its
-    bootstrap's (the first alone where the row has no bootstrap's)."""
-    out = {}
-    for name in row["ci95"]:
-        low, high = row["ci95_gauss_newton_jackknife"][name]
-        b_low, b_high = row["ci95_bootstrap"].get(name, (low, high))
-        out[name] = [min(low, b_low), max(high, b_high)]
-    return out
+    bootstrap's (the first alone where the row has no bootstrap's): the diagnosis's merge with no
+    parameter taken as resting on one recording."""
+    return merged_intervals(row["ci95_gauss_newton_jackknife"], row["ci95_bootstrap"])
 
 
 def all_covered(row: dict[str, Any], intervals: dict[str, list[float]]) -> bool:
