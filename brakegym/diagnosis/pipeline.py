@@ -415,10 +415,10 @@ class Diagnoser:
         - the point with the nuisance gridded with the effect acting
           (:meth:`.fitting.FitProblem.gridded_start`): the point's nuisance comes from the
           unmodified model's, which can lie in a valley of its own;
-        - the best points of the grid's other valleys (``screen_valleys`` in all; on a grid of
-          2-3 points per parameter, its next best point): wet pads' chi^2 has a second valley, a
-          larger loss drying more slowly against friction factors 20 % high, that the coarse grid
-          can rate best;
+        - the best points of the grid's other valleys where the effect acts
+          (``screen_valleys`` in all; on a grid of 2-3 points per parameter, its next best
+          point): wet pads' chi^2 has a second valley, a larger loss drying more slowly against
+          friction factors 20 % high, that the coarse grid can rate best;
         - an integer parameter's neighbours (unless not ``vary_integer``): the screening's chord
           iterations leave a few percent of chi^2 unconverged, as much as one failed unit of
           sixteen is worth once the friction factors have absorbed most of it.

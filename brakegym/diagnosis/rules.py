@@ -139,6 +139,10 @@ class DiagnosisRules:
     #: its screening grid: its best screened point's, and the best of the others (1: that one
     #: alone); the fit of least chi^2 is kept
     screen_valleys: int = 2
+    #: a grid point whose chi^2 is the baseline's within this share of it is a point where the
+    #: effect acts on nothing (a fade whose onset the discs never reach): no valley, and no start
+    #: for a full fit, whose steps could not leave it
+    no_effect_chi2_share: float = 1e-4
 
     # -- intervals ------------------------------------------------------------------------------
     #: replicates of the parametric bootstrap of the selected model's parameters (:mod:`.bootstrap`);

@@ -254,11 +254,20 @@ class Screening:
         """The grid's local minima but the one of ``point``'s valley, best first. A grid of fewer
         than 4 points per parameter cannot show two valleys as two minima (on wet pads' 3 x 3 a
         loss of 0.26 drying within 0.7 MJ and one of 0.37 drying within 4.5 MJ descend to the same
-        grid point): there its other points follow, best first."""
+        grid point): there its other points follow, best first.
+
+        Points where the effect acts on nothing are left out (their chi^2 is the baseline's within
+        ``rules.no_effect_chi2_share``): on a fade's grid the onsets the discs never reach form a
+        plateau, which the chord iterations' last digits break into minima; a full fit from
+        there has no gradient to follow and ends where it started."""
         own = grid_valley(effect_id, self.rules, chi2s, point.theta)
-        minima = sorted((j for j in grid_minima(effect_id, self.rules, chi2s) if j != own), key=lambda j: chi2s[j])
+        baseline_chi2 = self.weighting.chi2(self.baseline.residual)
+        acts = np.abs(chi2s - baseline_chi2) > self.rules.no_effect_chi2_share * baseline_chi2
+        minima = sorted(
+            (j for j in grid_minima(effect_id, self.rules, chi2s) if j != own and acts[j]), key=lambda j: chi2s[j]
+        )
         if min(_grid_shape(effect_id, self.rules)) < 4:
-            minima += [int(j) for j in np.argsort(chi2s, kind="stable") if j != own and j not in minima]
+            minima += [int(j) for j in np.argsort(chi2s, kind="stable") if j != own and j not in minima and acts[j]]
         return tuple(grid_points[j] for j in minima)
 
     def _nuisance_refitted(self, effect_id: str, point: ScreenedPoint) -> ScreenedPoint:
