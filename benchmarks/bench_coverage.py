@@ -55,7 +55,7 @@ from brakegym.diagnosis.judging import not_bounded_by_data
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import EFFECTS
 from brakegym.recordings.chain import load_measurement_chain
-from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, synthesize
+from brakegym.recordings.synth import RANDOM_EFFECT_IDS, EffectRequest, SynthResult, synthesize
 
 DEFAULT_RECORDINGS = 8
 # The interval kinds a row keeps: the reported one and its two parts.
@@ -69,18 +69,23 @@ def set_seed(seed: int, index: int, effect_index: int) -> int:
     return 100_000 * seed + 100 * index + effect_index
 
 
+def synthesized_set(effect_id: str, seed: int, recordings: int, chain: str | None, folder: Path) -> SynthResult:
+    """A coverage set: ``effect_id`` alone, written under ``folder``."""
+    return synthesize(
+        folder / "set",
+        recordings,
+        seed,
+        effects=[EffectRequest(effect_id)],
+        key_path=folder / "key.json",
+        measurement_chain=load_measurement_chain(chain) if chain else None,
+    )
+
+
 def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -> dict[str, Any]:
     """One set: synthesized with ``effect_id`` alone, the effect fitted as the diagnosis fits it
     (an integer parameter held at the key's value)."""
     with tempfile.TemporaryDirectory() as tmp:
-        result = synthesize(
-            Path(tmp) / "set",
-            recordings,
-            seed,
-            effects=[EffectRequest(effect_id)],
-            key_path=Path(tmp) / "key.json",
-            measurement_chain=load_measurement_chain(chain) if chain else None,
-        )
+        result = synthesized_set(effect_id, seed, recordings, chain, Path(tmp))
         (entry,) = result.key["effects"]
         truth = entry["parameters"]
         row: dict[str, Any] = {
