@@ -36,18 +36,20 @@ from bench_coverage import synthesized_set
 from brakegym.diagnosis import Diagnoser, DiagnosisRules
 from brakegym.diagnosis.bootstrap import bootstrap, bootstrap_seed
 from brakegym.diagnosis.fitting import FitResult
+from brakegym.diagnosis.weighting import Weighting
 from brakegym.effects import EFFECTS
 
 #: iterations of each nuisance fit with the effect's parameters held
 HELD_FIT_ITERATIONS = 16
 
 
-def held_fit(diagnoser: Diagnoser, effect_id: str, values: dict[str, float], unmodified: FitResult) -> FitResult:
+def held_fit(
+    diagnoser: Diagnoser, effect_id: str, values: dict[str, float], unmodified: FitResult, weighting: Weighting
+) -> FitResult:
     """``effect_id`` with every parameter held at ``values`` and each recording's nuisance
     fitted, from the unmodified model's nuisance and from the one gridded with the effect acting;
-    the fit of lower effective chi^2."""
+    the fit of lower effective chi^2 (under ``weighting``, the unmodified model's)."""
     problem = diagnoser.problem
-    weighting = diagnoser.weighting(unmodified)
     gridded = problem.gridded_start([effect_id], values, [], np.zeros(0))
     fits = [
         problem.fit([effect_id], start, fixed=values, max_iterations=HELD_FIT_ITERATIONS)
@@ -57,11 +59,16 @@ def held_fit(diagnoser: Diagnoser, effect_id: str, values: dict[str, float], unm
 
 
 def at_point(
-    diagnoser: Diagnoser, effect_id: str, values: dict[str, float], unmodified: FitResult, replicates: int
+    diagnoser: Diagnoser,
+    effect_id: str,
+    values: dict[str, float],
+    unmodified: FitResult,
+    weighting: Weighting,
+    replicates: int,
 ) -> dict[str, Any]:
     """The effective chi^2 and the bootstrap at the effect's parameters ``values``."""
     problem, rules = diagnoser.problem, diagnoser.rules
-    held = held_fit(diagnoser, effect_id, values, unmodified)
+    held = held_fit(diagnoser, effect_id, values, unmodified, weighting)
     integer = {spec.name: values[spec.name] for spec in EFFECTS[effect_id].parameters if spec.integer}
     free = problem.free_parameters([effect_id], integer)
     theta = np.array([values[parameter.name] for parameter in free])
@@ -76,7 +83,7 @@ def at_point(
         rules.bootstrap_scatter_setup,
         diagnoser.decel_bias_sigma,
     )
-    out: dict[str, Any] = {"values": values, "chi2_eff": float(diagnoser.weighting(unmodified).chi2(held.residual))}
+    out: dict[str, Any] = {"values": values, "chi2_eff": float(weighting.chi2(held.residual))}
     if result is not None:
         out["bootstrap_mean"] = dict(zip(result.names, result.estimates.mean(axis=0).round(5).tolist()))
         out["bootstrap_std"] = dict(zip(result.names, result.estimates.std(axis=0, ddof=1).round(5).tolist()))
@@ -91,14 +98,15 @@ def probe_row(row: dict[str, Any], replicates: int) -> dict[str, Any]:
         result = synthesized_set(effect_id, row["seed"], row["recordings"], row["measurement_chain"], Path(tmp))
         diagnoser = Diagnoser(result.recordings)
         unmodified = diagnoser.unmodified_fit()
+        weighting = diagnoser.weighting(unmodified)
         truth = {k: float(v) for k, v in result.key["effects"][0]["parameters"].items()}
         fitted = {**truth, **{k: float(v) for k, v in row["fitted"].items()}}
         return {
             "effect": effect_id,
             "seed": row["seed"],
-            "chi2_eff_unmodified": float(diagnoser.weighting(unmodified).chi2(unmodified.residual)),
-            "truth": at_point(diagnoser, effect_id, truth, unmodified, replicates),
-            "fitted": at_point(diagnoser, effect_id, fitted, unmodified, replicates),
+            "chi2_eff_unmodified": float(weighting.chi2(unmodified.residual)),
+            "truth": at_point(diagnoser, effect_id, truth, unmodified, weighting, replicates),
+            "fitted": at_point(diagnoser, effect_id, fitted, unmodified, weighting, replicates),
         }
 
 
