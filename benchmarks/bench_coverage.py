@@ -107,7 +107,7 @@ def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -
     report = candidate.report
     row["fitted"] = report["parameters"]
     row["resting_on_one_recording"] = sorted(report["resting_on_one_recording"])
-    for kind in INTERVALS:
+    for kind in (*INTERVALS, "ci95_bootstrap_at_fit"):
         row[kind] = {k: v for k, v in report.get(kind, {}).items() if k not in integer}
     return row
 

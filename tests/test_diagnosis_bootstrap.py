@@ -108,6 +108,35 @@ def test_an_accelerometer_bias_widens_what_the_replicates_spread(accelerometer_g
     assert biased.estimates.tobytes() == plain.estimates.tobytes()
 
 
+def test_the_ends_tested_by_their_own_replicates_widen_the_interval_by_the_inverted_test(gradient_fit):
+    problem, fit, noise_models, rules = gradient_fit
+    seed = bootstrap_seed(problem.recordings, fit.effect_ids)
+    plain = bootstrap(problem, fit, noise_models, REPLICATES, rules.fit_iterations, seed)
+    tested = bootstrap(problem, fit, noise_models, REPLICATES, rules.fit_iterations, seed, end_replicates=6)
+    again = bootstrap(problem, fit, noise_models, REPLICATES, rules.fit_iterations, seed, end_replicates=6)
+    # The replicates at the fit are the plain bootstrap's; the ends add to them, bit for bit.
+    assert tested.estimates.tobytes() == plain.estimates.tobytes()
+    assert [e.estimates.tobytes() for e in tested.ends] == [e.estimates.tobytes() for e in again.ends]
+    assert tested.ci95 == again.ci95
+    # One draw at each end of the plain interval, simulated with that end's gradient.
+    assert [e.parameter for e in tested.ends] == ["gradient_permil"] * 2
+    assert [e.point[0] for e in tested.ends] == pytest.approx(plain.ci95["gradient_permil"], abs=1e-5)
+    low, high = tested.ci95["gradient_permil"]
+    theta = fit.x[0]
+    quantile = stats.t.ppf(0.975, 5)
+    inverted = [
+        theta - (e.estimates[:, 0].mean() - e.point[0]) + side * quantile * e.estimates[:, 0].std(ddof=1)
+        for e, side in zip(tested.ends, (-1.0, 1.0))
+    ]
+    assert low == pytest.approx(min(plain.ci95["gradient_permil"][0], inverted[0]), abs=1e-5)
+    assert high == pytest.approx(max(plain.ci95["gradient_permil"][1], inverted[1]), abs=1e-5)
+    # The ends moved out here (the replicates at both ends of this set spread wider than those at
+    # the fit: 1.1 and 1.2 permil against 0.75), and the interval still holds the truth and
+    # excludes zero.
+    assert low < plain.ci95["gradient_permil"][0] and high > plain.ci95["gradient_permil"][1]
+    assert 0.0 < low <= GRADIENT_PERMIL <= high
+
+
 def test_too_few_replicates_give_no_bootstrap(gradient_fit):
     problem, fit, noise_models, rules = gradient_fit
     assert bootstrap(problem, fit, noise_models, 2, rules.fit_iterations, 0) is None

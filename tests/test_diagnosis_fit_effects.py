@@ -47,6 +47,11 @@ def test_a_named_gradient_is_fitted_with_the_intervals_of_a_selected_model(diagn
         part_low, part_high = report[part]["gradient_permil"]
         assert low <= part_low and part_high <= high, (part, report[part], report["ci95"])
     assert report["bootstrap_replicates"] == diagnoser.rules.bootstrap_replicates
+    # The ends tested by replicates of their own only widen the interval drawn at the fit.
+    assert report["bootstrap_end_replicates"] == diagnoser.rules.bootstrap_end_replicates
+    at_fit_low, at_fit_high = report["ci95_bootstrap_at_fit"]["gradient_permil"]
+    boot_low, boot_high = report["ci95_bootstrap"]["gradient_permil"]
+    assert boot_low <= at_fit_low < at_fit_high <= boot_high
     assert report["rms_after"]["speed_mps"] < report["rms_before"]["speed_mps"]
     assert report["not_bounded_by_data"] == []  # the interval holds the gradient to a few permil
 

@@ -34,6 +34,16 @@ alone then misses a truth that the one on theta holds. The bootstrap's quantiles
 with a few tens of replicates the 2.5 % and 97.5 % percentiles are the one or two most extreme
 replicates, while the standard deviation uses all of them.
 
+The replicates are drawn around the estimate, and the interval then assumes that the estimator
+scatters and is biased at the truth as it is at the estimate. A thermal fade's is not: a fade
+fitted short of its truth (a late onset, a small loss) is one whose stops reach less of it, and
+its replicates scatter less than a set at the truth would. So the interval's ends are tested
+(``end_replicates``, the rule ``bootstrap_end_replicates``): at each end of each parameter's
+interval, with the other parameters along the replicates' regression on it, a second set of
+replicates is drawn, and the end moves out to the truth at which the fitted value would be the
+2.5 % (97.5 %) point of the replicates there, their bias and spread read at that end (one step
+of a test inversion). An end only moves outwards: the interval is the hull of both.
+
 The random stream is seeded from the bytes of the recordings' samples and the selected effects,
 so the same data give the same intervals bit for bit.
 """
@@ -43,7 +53,7 @@ from __future__ import annotations
 import copy
 import hashlib
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -58,7 +68,7 @@ from .judging import Candidate, not_bounded_by_data
 from .noise import ChannelNoise
 from .rules import DiagnosisRules
 
-__all__ = ["BootstrapResult", "add_bootstrap_intervals", "bootstrap", "bootstrap_seed", "merged_intervals"]
+__all__ = ["BootstrapResult", "EndDraw", "add_bootstrap_intervals", "bootstrap", "bootstrap_seed", "merged_intervals"]
 
 
 @dataclass
@@ -68,12 +78,28 @@ class BootstrapResult:
     ``estimates``: (replicates, free parameters), in the order of the fit's free parameters;
     ``ci95``: per free parameter, the hull of the bias-corrected normal interval and the one on
     the estimate, inside the bounds;
-    ``seed``: the seed of the random stream."""
+    ``seed``: the seed of the random stream;
+    ``ends``: the replicates drawn at the interval's ends, in the order they were drawn;
+    ``ci95_at_fit``: the interval from the replicates at the fit alone (``ci95`` where no end
+    was drawn)."""
 
     names: list[str]
     estimates: np.ndarray
     ci95: dict[str, list[float]]
     seed: int
+    ends: list[EndDraw] = field(default_factory=list)
+    ci95_at_fit: dict[str, list[float]] = field(default_factory=dict)
+
+
+@dataclass
+class EndDraw:
+    """Replicates drawn at one end of one parameter's interval: ``parameter`` (its name),
+    ``point`` (the effect parameters they were simulated with, in the fit's order) and
+    ``estimates`` (end replicates, free parameters)."""
+
+    parameter: str
+    point: np.ndarray
+    estimates: np.ndarray
 
 
 def bootstrap_seed(recordings: Sequence, effect_ids: Sequence[str]) -> int:
@@ -133,25 +159,30 @@ def _replica(problem: FitProblem, normalised_measured: np.ndarray) -> FitProblem
     return replica
 
 
-def bootstrap(
+def _replicate_estimates(
     problem: FitProblem,
     fit: FitResult,
+    centre: np.ndarray,
     noise_models: Mapping[str, ChannelNoise],
     replicates: int,
     fit_iterations: int,
-    seed: int,
-    scatter_setup: str = "mcs-75-25",
-    decel_bias_sigma: float = 0.0,
-) -> BootstrapResult | None:
-    """The parametric bootstrap of ``fit`` (see the module documentation); None when the fit has
-    no continuous parameter or fewer than 3 replicates are asked for. ``decel_bias_sigma``: the
-    scatter of the accelerometer bias between recordings, m/s^2."""
+    rng: np.random.Generator,
+    bias_rng: np.random.Generator,
+    scatter_setup: str,
+    decel_bias_sigma: float,
+) -> np.ndarray:
+    """(replicates, free parameters): the refitted effect parameters of ``replicates`` sets
+    simulated with the effect parameters ``centre`` and the fit's nuisance (its initial speeds
+    and disc temperatures; the friction and running resistance drawn), each refitted from its
+    own truth."""
     p, n = len(fit.free), problem.n
-    if p == 0 or replicates < 3:
-        return None
-    rng = np.random.default_rng(seed)
-    level = fit.parameters.get("mu_scale", 1.0) if FrictionLevel.id in fit.effect_ids else 1.0
-    truths = np.tile(fit.x, (replicates, 1))
+    start = fit.x.copy()
+    start[:p] = centre
+    level = 1.0
+    for j, parameter in enumerate(fit.free):
+        if parameter.effect_id == FrictionLevel.id:
+            level = float(centre[j])
+    truths = np.tile(start, (replicates, 1))
     truths[:, problem.nuisance_block(FRICTION_FACTOR, p)] = level
     truths[:, problem.nuisance_block(RESISTANCE_DEVIATION, p)] = 0.0
     vehicle = problem.recordings[0].vehicle
@@ -163,16 +194,67 @@ def bootstrap(
         [s.measured[c] / problem.noise[c] for s in problem.samples for c in s.rows]
     )  # the rows' order of FitProblem._residual
     simulated = measured[None, :] - residuals[:, data_rows]
-    bias_rng = np.random.default_rng([seed, 1])
     noisy = simulated + _replica_noise(problem, noise_models, rng, replicates, decel_bias_sigma, bias_rng)
     estimates = np.empty((replicates, p))
     for b in range(replicates):
         replica = _replica(problem, noisy[b])
-        refit = replica.fit(list(fit.effect_ids), fit.x, fixed=fit.fixed, max_iterations=fit_iterations)
+        refit = replica.fit(list(fit.effect_ids), start, fixed=fit.fixed, max_iterations=fit_iterations)
         estimates[b] = refit.x[:p]
         problem.simulations += replica.simulations
     problem.simulations += replicates * n
+    return estimates
+
+
+def _interval_ends(
+    fit: FitResult, estimates: np.ndarray, ci95: Mapping[str, Sequence[float]]
+) -> list[tuple[int, np.ndarray]]:
+    """Where to draw the replicates that test the interval's ends: per free parameter j and
+    side, the point whose j-th value is that end of ``ci95`` and whose other values follow the
+    replicates' regression on parameter j (the normal approximation's profile), inside the
+    bounds. A parameter the replicates do not move, or an end on a bound, has no point."""
+    p = len(fit.free)
     theta = fit.x[:p]
+    lower = np.array([f.spec.lower for f in fit.free])
+    upper = np.array([f.spec.upper for f in fit.free])
+    covariance = np.atleast_2d(np.cov(estimates, rowvar=False))
+    points = []
+    for j, parameter in enumerate(fit.free):
+        if not covariance[j, j] > 0.0:
+            continue
+        for end in ci95[parameter.name]:
+            if end in (parameter.spec.lower, parameter.spec.upper):
+                continue
+            point = theta + covariance[:, j] / covariance[j, j] * (end - theta[j])
+            point[j] = end
+            points.append((j, np.clip(point, lower, upper)))
+    return points
+
+
+def bootstrap(
+    problem: FitProblem,
+    fit: FitResult,
+    noise_models: Mapping[str, ChannelNoise],
+    replicates: int,
+    fit_iterations: int,
+    seed: int,
+    scatter_setup: str = "mcs-75-25",
+    decel_bias_sigma: float = 0.0,
+    end_replicates: int = 0,
+) -> BootstrapResult | None:
+    """The parametric bootstrap of ``fit`` (see the module documentation); None when the fit has
+    no continuous parameter or fewer than 3 replicates are asked for. ``decel_bias_sigma``: the
+    scatter of the accelerometer bias between recordings, m/s^2. ``end_replicates`` (3 or more):
+    replicates drawn at each end of each parameter's interval, which widen it where the
+    estimate scatters more or is biased more there than at the fit."""
+    p = len(fit.free)
+    if p == 0 or replicates < 3:
+        return None
+    rng = np.random.default_rng(seed)
+    bias_rng = np.random.default_rng([seed, 1])
+    theta = fit.x[:p]
+    estimates = _replicate_estimates(
+        problem, fit, theta, noise_models, replicates, fit_iterations, rng, bias_rng, scatter_setup, decel_bias_sigma
+    )
     bias = estimates.mean(axis=0) - theta
     spread = estimates.std(axis=0, ddof=1)
     quantile = float(stats.t.ppf(0.975, replicates - 1))
@@ -181,10 +263,40 @@ def bootstrap(
         corrected = theta[j] - bias[j]
         half = quantile * spread[j]
         ci95[parameter.name] = [
-            round(float(max(min(corrected, theta[j]) - half, parameter.spec.lower)), 5),
-            round(float(min(max(corrected, theta[j]) + half, parameter.spec.upper)), 5),
+            float(max(min(corrected, theta[j]) - half, parameter.spec.lower)),
+            float(min(max(corrected, theta[j]) + half, parameter.spec.upper)),
         ]
-    return BootstrapResult([f.name for f in fit.free], estimates, ci95, seed)
+    at_fit = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
+    ends = []
+    if end_replicates >= 3:
+        end_quantile = float(stats.t.ppf(0.975, end_replicates - 1))
+        for k, (j, point) in enumerate(_interval_ends(fit, estimates, ci95)):
+            drawn = _replicate_estimates(
+                problem,
+                fit,
+                point,
+                noise_models,
+                end_replicates,
+                fit_iterations,
+                np.random.default_rng([seed, 2 + k]),
+                np.random.default_rng([seed, 2 + k, 1]),
+                scatter_setup,
+                decel_bias_sigma,
+            )
+            ends.append(EndDraw(fit.free[j].name, point, drawn))
+            # The truth at which the fitted value is the replicates' 2.5 % (upper end) or 97.5 %
+            # (lower end) point, with the bias and spread read at this end rather than at the fit.
+            side = 1.0 if point[j] > theta[j] else -1.0
+            end_bias = drawn[:, j].mean() - point[j]
+            limit = theta[j] - end_bias + side * end_quantile * drawn[:, j].std(ddof=1)
+            parameter = fit.free[j]
+            low, high = ci95[parameter.name]
+            ci95[parameter.name] = [
+                float(max(min(low, limit), parameter.spec.lower)),
+                float(min(max(high, limit), parameter.spec.upper)),
+            ]
+    ci95 = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
+    return BootstrapResult([f.name for f in fit.free], estimates, ci95, seed, ends, at_fit)
 
 
 def merged_intervals(
@@ -223,7 +335,8 @@ def add_bootstrap_intervals(
     """Bootstrap the selected candidate's fit and write its intervals into its report entry:
     ``ci95`` becomes the hull of the Gauss-Newton/jackknife interval (kept as
     ``ci95_gauss_newton_jackknife``) and the bootstrap's (``ci95_bootstrap``, from
-    ``bootstrap_replicates`` replicates; ``decel_bias_sigma`` as for :func:`bootstrap`), the
+    ``bootstrap_replicates`` replicates at the fit, its ends tested by ``bootstrap_end_replicates``
+    at each, ``ci95_bootstrap_at_fit`` without them; ``decel_bias_sigma`` as for :func:`bootstrap`), the
     bootstrap's alone for a parameter the entry's ``resting_on_one_recording`` names (see
     :func:`merged_intervals`)."""
     fit = selected.fit
@@ -237,13 +350,16 @@ def add_bootstrap_intervals(
         seed,
         rules.bootstrap_scatter_setup,
         decel_bias_sigma,
+        rules.bootstrap_end_replicates,
     )
     if result is None:
         return None
     report = selected.report
     report["ci95_gauss_newton_jackknife"] = report["ci95"]
     report["ci95_bootstrap"] = result.ci95
+    report["ci95_bootstrap_at_fit"] = result.ci95_at_fit
     report["bootstrap_replicates"] = int(len(result.estimates))
+    report["bootstrap_end_replicates"] = int(len(result.ends[0].estimates)) if result.ends else 0
     # The replicates' mean and spread, from which any other bootstrap interval can be read.
     report["bootstrap_mean"] = {n: round(float(v), 6) for n, v in zip(result.names, result.estimates.mean(axis=0))}
     report["bootstrap_std"] = {

@@ -148,6 +148,12 @@ class DiagnosisRules:
     #: replicates of the parametric bootstrap of the selected model's parameters (:mod:`.bootstrap`);
     #: each refits the selected model once, so the cost grows linearly; below 3, no bootstrap
     bootstrap_replicates: int = 12
+    #: replicates drawn at each end of each parameter's bootstrap interval (the effect's
+    #: parameters at that end, the others along the replicates' regression), which move the end
+    #: out to where the fitted value is the 2.5 % point of the replicates drawn there: an
+    #: estimator whose spread or bias grows away from the fit (a thermal fade's) is covered; each
+    #: end costs as many refits; below 3, none
+    bootstrap_end_replicates: int = 12
     #: a parameter whose information the other recordings hold less than this share of, with
     #: one recording left out, rests on that recording alone (reported, ``resting_on_one_recording``;
     #: see also ``heldout_unseen_z``)
