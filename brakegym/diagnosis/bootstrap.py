@@ -63,7 +63,7 @@ from ..effects import FrictionLevel
 from ..plants import train_scatter
 from ..recordings.columns import DECEL
 from ..recordings.logger import ar1_noise
-from .fitting import FRICTION_FACTOR, RESISTANCE_DEVIATION, FitProblem, FitResult, Samples
+from .fitting import FRICTION_FACTOR, RESISTANCE_DEVIATION, FitProblem, FitResult, FreeParameter, Samples
 from .judging import Candidate, not_bounded_by_data
 from .noise import ChannelNoise
 from .rules import DiagnosisRules
@@ -230,6 +230,11 @@ def _interval_ends(
     return points
 
 
+def _inside_bounds(low: float, high: float, parameter: FreeParameter) -> list[float]:
+    """``low``..``high`` cut to the parameter's bounds."""
+    return [float(max(low, parameter.spec.lower)), float(min(high, parameter.spec.upper))]
+
+
 def bootstrap(
     problem: FitProblem,
     fit: FitResult,
@@ -262,14 +267,12 @@ def bootstrap(
     for j, parameter in enumerate(fit.free):
         corrected = theta[j] - bias[j]
         half = quantile * spread[j]
-        ci95[parameter.name] = [
-            float(max(min(corrected, theta[j]) - half, parameter.spec.lower)),
-            float(min(max(corrected, theta[j]) + half, parameter.spec.upper)),
-        ]
+        ci95[parameter.name] = _inside_bounds(
+            min(corrected, theta[j]) - half, max(corrected, theta[j]) + half, parameter
+        )
     at_fit = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
     ends = []
     if end_replicates >= 3:
-        end_quantile = float(stats.t.ppf(0.975, end_replicates - 1))
         for k, (j, point) in enumerate(_interval_ends(fit, estimates, ci95)):
             drawn = _replicate_estimates(
                 problem,
@@ -284,19 +287,19 @@ def bootstrap(
                 decel_bias_sigma,
             )
             ends.append(EndDraw(fit.free[j].name, point, drawn))
-            # The truth at which the fitted value is the replicates' 2.5 % (upper end) or 97.5 %
-            # (lower end) point, with the bias and spread read at this end rather than at the fit.
-            side = 1.0 if point[j] > theta[j] else -1.0
-            end_bias = drawn[:, j].mean() - point[j]
-            limit = theta[j] - end_bias + side * end_quantile * drawn[:, j].std(ddof=1)
-            parameter = fit.free[j]
-            low, high = ci95[parameter.name]
-            ci95[parameter.name] = [
-                float(max(min(low, limit), parameter.spec.lower)),
-                float(min(max(high, limit), parameter.spec.upper)),
-            ]
+            limit = _inverted_end(float(theta[j]), float(point[j]), drawn[:, j])
+            low, high = ci95[fit.free[j].name]
+            ci95[fit.free[j].name] = _inside_bounds(min(low, limit), max(high, limit), fit.free[j])
     ci95 = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
     return BootstrapResult([f.name for f in fit.free], estimates, ci95, seed, ends, at_fit)
+
+
+def _inverted_end(fitted: float, end: float, drawn: np.ndarray) -> float:
+    """The truth at which ``fitted`` is the 2.5 % point (an upper ``end``) or the 97.5 % point (a
+    lower one) of replicates drawn at ``end``: their bias and spread read there, not at the fit."""
+    side = 1.0 if end > fitted else -1.0
+    quantile = float(stats.t.ppf(0.975, len(drawn) - 1))
+    return fitted - (drawn.mean() - end) + side * quantile * drawn.std(ddof=1)
 
 
 def merged_intervals(
