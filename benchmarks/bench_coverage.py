@@ -81,9 +81,12 @@ def synthesized_set(effect_id: str, seed: int, recordings: int, chain: str | Non
     )
 
 
-def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -> dict[str, Any]:
+def measure_set(
+    effect_id: str, seed: int, recordings: int, chain: str | None, end_replicates: int = 0
+) -> dict[str, Any]:
     """One set: synthesized with ``effect_id`` alone, the effect fitted as the diagnosis fits it
-    (an integer parameter held at the key's value)."""
+    (an integer parameter held at the key's value); ``end_replicates``: the rule
+    ``bootstrap_end_replicates`` (the bootstrap's interval ends tested; 0: the default, none)."""
     with tempfile.TemporaryDirectory() as tmp:
         result = synthesized_set(effect_id, seed, recordings, chain, Path(tmp))
         (entry,) = result.key["effects"]
@@ -95,12 +98,14 @@ def measure_set(effect_id: str, seed: int, recordings: int, chain: str | None) -
             "measurement_chain": chain,
             "truth": truth,
             "expressed": entry["imprint"]["expressed"],
+            "end_replicates": end_replicates,
         }
         if not row["expressed"]:
             return row
         integer = {spec.name for spec in EFFECTS[effect_id].parameters if spec.integer}
         started = time.time()
-        candidate = Diagnoser(result.recordings).fit_effects(
+        rules = DiagnosisRules(bootstrap_end_replicates=end_replicates)
+        candidate = Diagnoser(result.recordings, rules=rules).fit_effects(
             [effect_id], fixed={k: v for k, v in truth.items() if k in integer}
         )
         row["seconds"] = round(time.time() - started, 1)
@@ -245,6 +250,13 @@ def main() -> None:
         "--set", action="append", metavar="EFFECT:SEED", help="one set: an effect id and its synth seed (repeatable)"
     )
     parser.add_argument("--measurement-chain", help="a measurement chain of configs/chains (default: clean 10 Hz)")
+    parser.add_argument(
+        "--end-replicates",
+        type=int,
+        default=0,
+        help="replicates testing each end of the bootstrap's intervals (DiagnosisRules.bootstrap_end_replicates; "
+        "default 0, the diagnosis's default: none)",
+    )
     parser.add_argument("--json", help="write every set's row (after each set)")
     parser.add_argument("--summary-json", metavar="FILE", help="write the summary's numbers as JSON")
     args = parser.parse_args()
@@ -263,7 +275,7 @@ def main() -> None:
         ]
         rows = []
         for effect_id, seed in sets:
-            row = measure_set(effect_id, seed, args.recordings, args.measurement_chain)
+            row = measure_set(effect_id, seed, args.recordings, args.measurement_chain, args.end_replicates)
             rows.append(row)
             shown = {k: row.get(k) for k in ("truth", "fitted", "ci95")}
             print(f"{effect_id:24s} seed {seed}: {json.dumps(shown)}", flush=True)
