@@ -82,11 +82,14 @@ def synthesized_set(effect_id: str, seed: int, recordings: int, chain: str | Non
 
 
 def measure_set(
-    effect_id: str, seed: int, recordings: int, chain: str | None, end_replicates: int = 0
+    effect_id: str, seed: int, recordings: int, chain: str | None, end_replicates: int | None = None
 ) -> dict[str, Any]:
     """One set: synthesized with ``effect_id`` alone, the effect fitted as the diagnosis fits it
     (an integer parameter held at the key's value); ``end_replicates``: the rule
-    ``bootstrap_end_replicates`` (the bootstrap's interval ends tested; 0: the default, none)."""
+    ``bootstrap_end_replicates`` (the bootstrap's interval ends tested; None: the diagnosis's
+    default; 0: untested)."""
+    if end_replicates is None:
+        end_replicates = DiagnosisRules().bootstrap_end_replicates
     with tempfile.TemporaryDirectory() as tmp:
         result = synthesized_set(effect_id, seed, recordings, chain, Path(tmp))
         (entry,) = result.key["effects"]
@@ -253,9 +256,9 @@ def main() -> None:
     parser.add_argument(
         "--end-replicates",
         type=int,
-        default=0,
+        default=None,
         help="replicates testing each end of the bootstrap's intervals (DiagnosisRules.bootstrap_end_replicates; "
-        "default 0, the diagnosis's default: none)",
+        "default: the diagnosis's; 0: the ends untested)",
     )
     parser.add_argument("--json", help="write every set's row (after each set)")
     parser.add_argument("--summary-json", metavar="FILE", help="write the summary's numbers as JSON")

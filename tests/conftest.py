@@ -18,6 +18,17 @@ def golden_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def naming_rules():
+    """The diagnosis's rules without its bootstrap, for tests of what it names and fits rather
+    than of its intervals: the bootstrap runs after the verdict and changes no name, and with
+    its interval ends tested it costs up to three times a fade's diagnosis. The intervals have
+    tests of their own (``test_diagnosis_bootstrap.py``, and the diagnoses that check ``ci95``)."""
+    from brakegym.diagnosis import DiagnosisRules
+
+    return DiagnosisRules(bootstrap_replicates=0)
+
+
+@pytest.fixture(scope="session")
 def load_benchmark() -> Callable[[str], ModuleType]:
     """Imports a script of ``benchmarks/`` (not a package) by name, for tests of its bookkeeping."""
 

@@ -165,10 +165,10 @@ def patch_set(tmp_path_factory):
     return folder
 
 
-def test_the_diagnosis_names_a_stretch_of_low_adhesion_where_it_lies(patch_set):
+def test_the_diagnosis_names_a_stretch_of_low_adhesion_where_it_lies(patch_set, naming_rules):
     """Located along position and told from a downhill section by the accelerometer (thresholds
     fixed before the run, as for a gradient section: ends within 40 m; adhesion within 10 %)."""
-    report = diagnose(patch_set, top_singles=3, pairs_from=0).report
+    report = diagnose(patch_set, top_singles=3, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["adhesion_section"], report["summary"]
     fitted = report["parameters"]
     assert fitted["patch_start_m"] == pytest.approx(PATCH["patch_start_m"], abs=40.0)
@@ -214,10 +214,12 @@ def limit_and_resistance_set(tmp_path_factory):
     return folder
 
 
-def test_a_stretch_that_looks_like_the_adhesion_limit_leaves_the_pair_of_the_truth_found(limit_and_resistance_set):
+def test_a_stretch_that_looks_like_the_adhesion_limit_leaves_the_pair_of_the_truth_found(
+    limit_and_resistance_set, naming_rules
+):
     """The limit leaves a step along position and the stretch fits nearly as well as the limit;
     fitted in place of the running resistance it had the pair of the truth go unfitted."""
-    report = diagnose(limit_and_resistance_set).report
+    report = diagnose(limit_and_resistance_set, rules=naming_rules).report
     assert report["selected"] == ["adhesion_limit", "running_resistance"], report["summary"]
     assert report["position_step"]["explained_share"] >= 0.05  # the stretch was screened
 

@@ -30,7 +30,7 @@ GRADIENT_TOLERANCE_PERMIL = 1.0
 GRADIENT_TOLERANCE_SHARE = 0.2
 
 
-def test_names_a_gradient_and_recovers_its_size(tmp_path):
+def test_names_a_gradient_and_recovers_its_size(tmp_path, naming_rules):
     gradient = float(SIZES.choice([-1, 1]) * SIZES.uniform(4.0, 10.0))
     # Seed 3 draws an accelerometer set: with deceleration differentiated from speed, a gradient
     # and a running-resistance offset act alike on every channel but through the train mass, and
@@ -39,7 +39,7 @@ def test_names_a_gradient_and_recovers_its_size(tmp_path):
         tmp_path / "set", 6, seed=3, effects=[EffectRequest("gradient", {"gradient_permil": round(gradient, 2)})]
     )
     assert result.key["decel_source"] == "accelerometer"
-    report = diagnose(result.folder, top_singles=3, pairs_from=2).report
+    report = diagnose(result.folder, top_singles=3, pairs_from=2, rules=naming_rules).report
     assert "gradient" in report["selected"], report["summary"]
     fitted = report["parameters"]["gradient_permil"]
     assert abs(fitted - gradient) <= max(GRADIENT_TOLERANCE_PERMIL, GRADIENT_TOLERANCE_SHARE * abs(gradient)), (
@@ -61,12 +61,12 @@ def test_names_a_gradient_and_recovers_its_size(tmp_path):
     assert [e.id for e in env.unwrapped.core.fleet.effects] == report["selected"]
 
 
-def test_names_a_friction_level_or_its_confounders(tmp_path):
+def test_names_a_friction_level_or_its_confounders(tmp_path, naming_rules):
     mu_scale = float(SIZES.uniform(0.78, 0.86))
     folder = synthesize(
         tmp_path / "set", 6, seed=47, effects=[EffectRequest("friction_level", {"mu_scale": round(mu_scale, 3)})]
     ).folder
-    report = diagnose(folder, top_singles=2, pairs_from=0).report
+    report = diagnose(folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     named = "friction_level" in report["selected"] or any(
         "friction_level" in pair for pair in report["indistinguishable"]
     )
@@ -93,7 +93,7 @@ def test_names_an_adhesion_limit_and_recovers_it(tmp_path):
     assert rail["polach_static_friction"] == pytest.approx(0.063 * adhesion / 0.07, rel=0.1)
 
 
-def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path):
+def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path, naming_rules):
     # The fade of a blind benchmark set (8 recordings; four stops get hot enough to show it). Its
     # held-out gain is large on those and nil on the others: the selection must weigh the
     # recordings it acts on, not all eight alike (before, t 1.5 < 2 and nothing was selected).
@@ -104,7 +104,7 @@ def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path):
         effects=[EffectRequest("thermal_fade", {"onset_C": 207.1, "loss_per_100K": 0.3896})],
     )
     assert result.key["expected_selected"] == ["thermal_fade"]
-    report = diagnose(result.folder, top_singles=1, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=1, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
     assert report["parameters"]["onset_C"] == pytest.approx(207.1, abs=10.0)
     assert report["parameters"]["loss_per_100K"] == pytest.approx(0.3896, abs=0.05)
@@ -113,7 +113,7 @@ def test_names_a_thermal_fade_that_only_the_hottest_stops_reach(tmp_path):
     assert 2 <= len(fade["heldout_acts_on"]) < 8
 
 
-def test_names_a_fade_whose_onset_lies_between_the_screening_grid_points(tmp_path):
+def test_names_a_fade_whose_onset_lies_between_the_screening_grid_points(tmp_path, naming_rules):
     # Onset 224 degC in stops that peak near 250 degC (measured disc): the grid's onsets (167,
     # 340, 513 degC) either fade every stop or none, and screening never ranked the fade; it is
     # screened from onsets below the measured peak now, and judged relevant by the friction it
@@ -124,13 +124,13 @@ def test_names_a_fade_whose_onset_lies_between_the_screening_grid_points(tmp_pat
         seed=1910104468,
         effects=[EffectRequest("thermal_fade", {"onset_C": 224.4, "loss_per_100K": 0.3439})],
     )
-    report = diagnose(result.folder, top_singles=1, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=1, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
     assert report["parameters"]["onset_C"] == pytest.approx(224.4, abs=10.0)
     assert report["parameters"]["loss_per_100K"] == pytest.approx(0.3439, abs=0.05)
 
 
-def test_held_out_predictions_of_a_fade_are_simulated_not_extrapolated(tmp_path):
+def test_held_out_predictions_of_a_fade_are_simulated_not_extrapolated(tmp_path, naming_rules):
     # Left out, each of the hot stops moves the fade's parameters far; the linear prediction of
     # one of them came out 17 % worse than no effect (paired t 1.97, nothing selected), its
     # simulation 9 % better.
@@ -140,7 +140,7 @@ def test_held_out_predictions_of_a_fade_are_simulated_not_extrapolated(tmp_path)
         seed=724340878,
         effects=[EffectRequest("thermal_fade", {"onset_C": 194.0, "loss_per_100K": 0.2048})],
     )
-    report = diagnose(result.folder, top_singles=1, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=1, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["thermal_fade"], report["summary"]
     fade = report["candidates"][0]
     names = [recording.name for recording in read_dataset(result.folder).recordings]
@@ -149,7 +149,7 @@ def test_held_out_predictions_of_a_fade_are_simulated_not_extrapolated(tmp_path)
     assert report["parameters"]["onset_C"] == pytest.approx(194.0, abs=10.0)
 
 
-def test_a_fade_that_only_one_or_two_stops_reach_is_reported_unconfirmed(tmp_path):
+def test_a_fade_that_only_one_or_two_stops_reach_is_reported_unconfirmed(tmp_path, naming_rules):
     # Only the hottest two of eight stops reach the onset: the fade fits them far better (BIC lower
     # by about 4,900), but a paired t over two recordings shows no consistency, and one of them
     # gains nothing held out. Not selected; named unconfirmed, with the stops that would confirm it.
@@ -159,7 +159,7 @@ def test_a_fade_that_only_one_or_two_stops_reach_is_reported_unconfirmed(tmp_pat
         seed=799579680,
         effects=[EffectRequest("thermal_fade", {"onset_C": 214.9, "loss_per_100K": 0.3864})],
     )
-    report = diagnose(result.folder, top_singles=1, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=1, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == [], report["summary"]
     [entry] = report["unconfirmed"]
     assert entry["effects"] == ["thermal_fade"]
@@ -169,7 +169,7 @@ def test_a_fade_that_only_one_or_two_stops_reach_is_reported_unconfirmed(tmp_pat
     assert report["mismatch"]["significant"] and "Unconfirmed: thermal_fade" in report["summary"]
 
 
-def test_a_sensor_scale_that_helps_two_recordings_and_worsens_others_is_not_selected(tmp_path):
+def test_a_sensor_scale_that_helps_two_recordings_and_worsens_others_is_not_selected(tmp_path, naming_rules):
     # An effect-free set on which a speed-sensor scale of 1.009 lowers the BIC by about 500: it
     # moves rows of only two recordings by a noise sigma, and a paired t over those two was 25,
     # so it was selected, while it raised the held-out error of others by up to 24 %. A recording
@@ -177,7 +177,7 @@ def test_a_sensor_scale_that_helps_two_recordings_and_worsens_others_is_not_sele
     # With each application's running resistance fitted, the scale no longer ranks among the three
     # best singles here: the resistances take up what it fitted. Where it is fitted, the rule holds.
     folder = synthesize(tmp_path / "set", 8, seed=1837742268).folder
-    report = diagnose(folder, top_singles=3, pairs_from=0).report
+    report = diagnose(folder, top_singles=3, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == [], report["summary"]
     scale = next((c for c in report["candidates"] if c["effects"] == ["speed_sensor_scale"]), None)
     if scale is None or scale["delta_bic"] >= -100:
@@ -201,19 +201,19 @@ def test_recovers_a_speed_sensor_scale_on_fast_stops(tmp_path):
     assert low <= 0.955 <= high
 
 
-def test_names_four_failed_brake_units(tmp_path):
+def test_names_four_failed_brake_units(tmp_path, naming_rules):
     # Four of sixteen units fail: the unmodified fit's friction factors sink to about 0.75, and
     # screening must start the failure's nuisance from factors rescaled by the force it leaves
     # (from 0.75 it rated the true failure worse than no effect, in every such benchmark set).
     result = synthesize(
         tmp_path / "set", 6, seed=67, effects=[EffectRequest("brake_unit_failure", {"failed_units": 4.0})]
     )
-    report = diagnose(result.folder, top_singles=2, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["brake_unit_failure"], report["summary"]
     assert report["parameters"]["failed_units"] == 4.0
 
 
-def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_path):
+def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_path, naming_rules):
     # Two failed units of sixteen against a heavier rotating mass: both take the same share of
     # the deceleration in every stop, and the blind benchmark selected the rotating mass (BIC
     # lower by 367, held-out error 8 % lower, paired t over the recordings 0.4) without a word on
@@ -222,7 +222,7 @@ def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_
     result = synthesize(
         tmp_path / "set", 8, seed=272204246, effects=[EffectRequest("brake_unit_failure", {"failed_units": 2.0})]
     )
-    report = diagnose(result.folder, top_singles=3, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=3, pairs_from=0, rules=naming_rules).report
     named = set(report["selected"]) | {effect for pair in report["indistinguishable"] for effect in pair}
     assert "brake_unit_failure" in named, report["summary"]
     if report["selected"] != ["brake_unit_failure"]:
@@ -233,7 +233,7 @@ def test_a_confounder_that_fits_as_well_held_out_is_named_indistinguishable(tmp_
         assert report["signature_correlations"][" / ".join(pair)] > 0.8
 
 
-def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path):
+def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path, naming_rules):
     # Drying at 0.73 MJ: on a linear screening grid (1.7, 5.0, 8.3 MJ) the fit ended in a second
     # valley near 6.7 MJ with a loss of 0.38 (twice the truth's chi^2); the grid is geometric now.
     result = synthesize(
@@ -242,15 +242,15 @@ def test_recovers_wet_pads_that_dry_within_a_megajoule(tmp_path):
         seed=562067968,
         effects=[EffectRequest("wet_pads", {"initial_loss": 0.2716, "drying_energy_MJ": 0.7277})],
     )
-    report = diagnose(result.folder, top_singles=2, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["wet_pads"], report["summary"]
     assert report["parameters"]["initial_loss"] == pytest.approx(0.2716, abs=0.02)
     assert report["parameters"]["drying_energy_MJ"] == pytest.approx(0.7277, rel=0.2)
 
 
-def test_selects_nothing_when_the_base_model_is_only_moved_within_its_scatter(tmp_path):
+def test_selects_nothing_when_the_base_model_is_only_moved_within_its_scatter(tmp_path, naming_rules):
     folder = synthesize(tmp_path / "set", 5, seed=53, base_offset=True).folder
-    report = diagnose(folder, top_singles=2, pairs_from=0).report
+    report = diagnose(folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == [], report["summary"]
     assert report["parameters"] == {}
 

@@ -183,7 +183,7 @@ def test_the_fallback_names_a_running_resistance_from_its_quadratic_signature(tm
         assert estimate == pytest.approx(force, rel=FORCE_TOLERANCE), (speed, fitted)
 
 
-def test_physics_outside_the_library_still_ends_unexplained(tmp_path, synth_train_like):
+def test_physics_outside_the_library_still_ends_unexplained(tmp_path, synth_train_like, naming_rules):
     # A set of the blind benchmark's train-like run (seed 21, set 4: measurement chain `real`,
     # model form `real_train`, no library effect): pad friction that falls with the contact
     # pressure on every stop (about the friction model's own reference clamp force), an ED brake
@@ -192,7 +192,7 @@ def test_physics_outside_the_library_still_ends_unexplained(tmp_path, synth_trai
     # from the coasting, before each application's resistance was fitted) must fail the rules.
     result = synth_train_like(tmp_path / "set", 520540898, random_effects=False)
     assert result.key["expected_selected"] == [] and result.key["expected_unexplained"]
-    report = Diagnoser(read_dataset(result.folder).recordings).run().report
+    report = Diagnoser(read_dataset(result.folder).recordings, rules=naming_rules).run().report
     assert report["selected"] == [], report["summary"]
     assert report["unexplained"] is not None and report["unexplained_fit"]["axis"]
     fallback = report["fallback_screening"]

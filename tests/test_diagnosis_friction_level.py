@@ -68,12 +68,12 @@ def test_names_a_friction_level_of_six_percent_with_a_speed_sensor_scale(tmp_pat
     assert low <= mu_scale <= high, (low, high)
 
 
-def test_selects_nothing_when_the_base_friction_is_moved_within_its_scatter(tmp_path):
+def test_selects_nothing_when_the_base_friction_is_moved_within_its_scatter(tmp_path, naming_rules):
     # The set's nominal mu_0 and power coefficient are both moved by 0.6-0.8 of their scatter
     # sigma: the factors' mean sits about 3 % off 1, a shift of the base model, not an effect.
     result = synthesize(tmp_path / "set", 8, seed=8, base_offset=True)
     assert result.key["base_offset"]["kind"] == "friction"
-    report = diagnose(result.folder, top_singles=2, pairs_from=0).report
+    report = diagnose(result.folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == [], report["summary"]
     assert report["parameters"] == {}
 

@@ -152,13 +152,13 @@ def test_the_command_line_takes_a_profile_and_refuses_a_bad_one(tmp_path, capsys
 
 # An adhesion limit held at no effect sits at infinite adhesion: no arithmetic may meet it.
 @pytest.mark.filterwarnings("error::RuntimeWarning")
-def test_a_declared_profile_is_not_named_as_an_effect(tmp_path):
+def test_a_declared_profile_is_not_named_as_an_effect(tmp_path, naming_rules):
     """With scatter and noise, the line's known gradients are in the model: the diagnosis selects
     nothing on an effect-free set on the graded line."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         folder = synthesize(tmp_path / "set", 5, seed=61, gradient_profile=PROFILE).folder
-    report = diagnose(folder, top_singles=2, pairs_from=0).report
+    report = diagnose(folder, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == [], report["summary"]
 
 

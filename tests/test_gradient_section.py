@@ -196,11 +196,11 @@ def test_an_effect_free_set_shows_no_step_along_position(tmp_path_factory):
     assert step is not None and step.explained_share < DiagnosisRules().position_step_min_share
 
 
-def test_the_diagnosis_names_a_section_that_begins_part_way_along_the_line(section_set, tmp_path):
+def test_the_diagnosis_names_a_section_that_begins_part_way_along_the_line(section_set, tmp_path, naming_rules):
     """The failure class of issue 18: a gradient that begins part-way went unnamed. Now the step
     along position is screened as a section, fitted, and selected; the fitted section lies where
     the truth does (thresholds fixed before the run: ends within 40 m, gradient within 15 %)."""
-    diagnosis = diagnose(section_set, top_singles=2, pairs_from=0)
+    diagnosis = diagnose(section_set, top_singles=2, pairs_from=0, rules=naming_rules)
     report = diagnosis.report
     assert report["selected"] == ["gradient_section"], report["summary"]
     fitted = report["parameters"]

@@ -97,10 +97,10 @@ def test_the_second_section_is_found_in_what_the_first_step_leaves(profile_set):
         assert step.explained_share >= rules.position_step_min_share
 
 
-def test_the_diagnosis_names_a_profile_of_two_sections(profile_set):
+def test_the_diagnosis_names_a_profile_of_two_sections(profile_set, naming_rules):
     """Selected is the profile, each section where the truth is (thresholds fixed before the
     run: ends within 40 m, gradients within 20 %), and the report keeps both steps."""
-    report = diagnose(profile_set, top_singles=2, pairs_from=0).report
+    report = diagnose(profile_set, top_singles=2, pairs_from=0, rules=naming_rules).report
     assert report["selected"] == ["gradient_sections"], report["summary"]
     fitted = report["parameters"]
     for which in ("first", "second"):

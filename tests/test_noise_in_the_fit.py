@@ -125,12 +125,12 @@ def test_the_replay_takes_the_transducers_zero_offsets_out(diagnoser, recordings
     assert positive >= 5 and negative >= 5  # the set holds both kinds (seed 3: 11 and 7)
 
 
-def test_an_effect_free_real_chain_set_fits_within_its_noise(recordings):
+def test_an_effect_free_real_chain_set_fits_within_its_noise(recordings, naming_rules):
     """With the accelerometer's AR(1) level in the fit, an effect-free set through the real chain
     is no mismatch (a white-noise level of half the true one read its noise as 2.4 sigma)."""
     from brakegym.diagnosis import Diagnoser
 
-    report = Diagnoser(recordings, top_singles=2, pairs_from=0).run().report
+    report = Diagnoser(recordings, top_singles=2, pairs_from=0, rules=naming_rules).run().report
     assert report["selected"] == [], report["summary"]
     assert not report["mismatch"]["significant"], report["mismatch"]
     assert report["mismatch"]["rms_over_noise"]["decel"] < DiagnosisRules().mismatch_rms_over_noise

@@ -735,8 +735,12 @@ def forward_screening_entry(single: Candidate, screened: dict[str, ScreenedPoint
 
 
 def diagnose(
-    dataset: str | Path | Sequence[Recording], top_singles: int | None = None, pairs_from: int | None = None
+    dataset: str | Path | Sequence[Recording],
+    top_singles: int | None = None,
+    pairs_from: int | None = None,
+    rules: DiagnosisRules | None = None,
 ) -> Diagnosis:
-    """Diagnose a folder of recordings (or the recordings given) (see the module documentation)."""
+    """Diagnose a folder of recordings (or the recordings given) under ``rules`` (the defaults
+    where None; ``top_singles`` and ``pairs_from`` override theirs) (see the module documentation)."""
     recordings = read_dataset(dataset).recordings if isinstance(dataset, (str, Path)) else list(dataset)
-    return Diagnoser(recordings, top_singles, pairs_from).run()
+    return Diagnoser(recordings, top_singles, pairs_from, rules).run()

@@ -152,10 +152,10 @@ class DiagnosisRules:
     #: parameters at that end, the others along the replicates' regression), which move the end
     #: out to where the fitted value is the 2.5 % point of the replicates drawn there: an
     #: estimator whose spread or bias grows away from the fit (a thermal fade's) is covered more
-    #: often (12: fade coverage 34/37 against 32/37). Each end costs as many refits, up to five
-    #: times the bootstrap's for a two-parameter effect, so it is asked for, not the default;
-    #: below 3, none
-    bootstrap_end_replicates: int = 0
+    #: often (12: fade coverage 34/37 against 32/37). Each end costs as many refits: five times
+    #: the bootstrap's for a two-parameter effect, about 1.5-3 times the whole diagnosis's time
+    #: on a fade; 0 (or below 3) leaves the ends untested
+    bootstrap_end_replicates: int = 12
     #: a parameter whose information the other recordings hold less than this share of, with
     #: one recording left out, rests on that recording alone (reported, ``resting_on_one_recording``;
     #: see also ``heldout_unseen_z``)
