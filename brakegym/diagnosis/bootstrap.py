@@ -270,7 +270,7 @@ def bootstrap(
         ci95[parameter.name] = _inside_bounds(
             min(corrected, theta[j]) - half, max(corrected, theta[j]) + half, parameter
         )
-    at_fit = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
+    at_fit = _rounded(ci95)
     ends = []
     if end_replicates >= 3:
         for k, (j, point) in enumerate(_interval_ends(fit, estimates, ci95)):
@@ -290,8 +290,12 @@ def bootstrap(
             limit = _inverted_end(float(theta[j]), float(point[j]), drawn[:, j])
             low, high = ci95[fit.free[j].name]
             ci95[fit.free[j].name] = _inside_bounds(min(low, limit), max(high, limit), fit.free[j])
-    ci95 = {name: [round(low, 5), round(high, 5)] for name, (low, high) in ci95.items()}
-    return BootstrapResult([f.name for f in fit.free], estimates, ci95, seed, ends, at_fit)
+    return BootstrapResult([f.name for f in fit.free], estimates, _rounded(ci95), seed, ends, at_fit)
+
+
+def _rounded(intervals: Mapping[str, Sequence[float]]) -> dict[str, list[float]]:
+    """Intervals as reported: each end to 5 decimals."""
+    return {name: [round(low, 5), round(high, 5)] for name, (low, high) in intervals.items()}
 
 
 def _inverted_end(fitted: float, end: float, drawn: np.ndarray) -> float:
