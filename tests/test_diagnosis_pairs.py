@@ -15,6 +15,7 @@ import pytest
 from brakegym.diagnosis import diagnose
 from brakegym.diagnosis.judging import Candidate, Judge, nested_candidates
 from brakegym.diagnosis.pipeline import look_alike_swaps
+from brakegym.diagnosis.report import single_or_pair_sentence
 from brakegym.diagnosis.rules import DiagnosisRules
 from brakegym.effects import in_library_order, nested_effects, special_cases
 from brakegym.recordings.synth import EffectRequest, synthesize
@@ -242,3 +243,22 @@ def test_a_pair_with_a_look_alike_of_the_best_single_replaces_it():
     failing_limit = judged(("adhesion_limit",), [9.9, 10.1, 9.8, 10.2], 50.0)
     verdict = judge.verdict([section, failing_limit], [section_and_resistance, limit_and_resistance])
     assert verdict.selected is section
+
+
+def test_the_summary_says_why_a_pair_beside_the_single_has_no_held_out_t():
+    # The second effect of the pair changes the held-out prediction of one recording, fewer than
+    # the held-out rule counts: no t, and the summary says why instead of printing None.
+    entry = {
+        "single": ["gradient"],
+        "pair": ["gradient", "adhesion_limit"],
+        "delta_bic_over_single": -19.4,
+        "heldout_t_over_single": None,
+        "heldout_acts_on_over_single": ["stop_03.csv"],
+        "separating_measurement": "coasting phases",
+    }
+    sentence = single_or_pair_sentence(entry)
+    assert "None" not in sentence
+    assert "no held-out t: it changes the held-out prediction of 1 recording(s) only" in sentence
+    assert "BIC -19" in sentence and "gradient alone or with adhesion_limit" in sentence
+    with_t = single_or_pair_sentence(dict(entry, heldout_t_over_single=2.7))
+    assert "held-out t 2.7, against gradient alone" in with_t

@@ -198,6 +198,7 @@ def _single_or_pair_entry(single: Candidate, pair: Candidate) -> dict[str, Any]:
         "heldout_gain_over_single": pair.report.get("heldout_gain"),
         "heldout_t_over_single": pair.report.get("heldout_t"),
         "heldout_p_over_single": pair.report.get("heldout_p"),
+        "heldout_acts_on_over_single": pair.report.get("heldout_acts_on"),
         "separating_measurement": separating_measurement(first, second),
     }
 
@@ -270,14 +271,27 @@ def _caveats(report: dict[str, Any], selected: Candidate) -> str:
         )
         text += f" These candidates explain the data about equally well, and would be separated by: {pairs}."
     for entry in report["indistinguishable_single_or_pair"]:
-        second = next(e for e in entry["pair"] if e not in entry["single"])
-        text += (
-            f" The pair {' + '.join(entry['pair'])} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} "
-            f"and held-out t {entry['heldout_t_over_single']} against {' + '.join(entry['single'])} alone), "
-            f"but not by every rule: {' + '.join(entry['single'])} alone or with {second} would be "
-            f"separated by {entry['separating_measurement']}."
-        )
+        text += " " + single_or_pair_sentence(entry)
     return text
+
+
+def single_or_pair_sentence(entry: dict[str, Any]) -> str:
+    """The summary's sentence on an entry of ``indistinguishable_single_or_pair``. A pair whose
+    second effect changes the held-out prediction of fewer recordings than the held-out rule
+    counts has no held-out t against the single; the sentence says so rather than print None."""
+    single, pair = " + ".join(entry["single"]), " + ".join(entry["pair"])
+    second = next(e for e in entry["pair"] if e not in entry["single"])
+    t = entry["heldout_t_over_single"]
+    if t is not None:
+        heldout = f"held-out t {t}"
+    else:
+        acting = len(entry.get("heldout_acts_on_over_single") or [])
+        heldout = f"no held-out t: it changes the held-out prediction of {acting} recording(s) only"
+    return (
+        f"The pair {pair} fits about as well (BIC {entry['delta_bic_over_single']:+.0f} and {heldout}, "
+        f"against {single} alone), but not by every rule: {single} alone or with {second} would be "
+        f"separated by {entry['separating_measurement']}."
+    )
 
 
 def _verdict(report: dict[str, Any], selected: Candidate | None) -> str:
