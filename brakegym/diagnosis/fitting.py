@@ -80,6 +80,13 @@ def friction_scatter_sigma(vehicle: cfg.Vehicle) -> float:
     return float(np.hypot(relative_mu, relative_a / 3.0))
 
 
+def recording_sse(residual: np.ndarray, rows: np.ndarray) -> float:
+    """The sum of squares of one recording's rows of a weighted residual (``rows``: its row
+    indices or mask), as the nuisance fits compare a recording's points."""
+    part = residual[rows]
+    return float(part @ part)
+
+
 @dataclass
 class Samples:
     """Which samples of one recording enter the fit, and their measured values."""
@@ -363,7 +370,7 @@ class FitProblem:
         residual, jac = self.jacobian(effect_ids, fixed, free, x, effect_too=False)
         blocks = [np.flatnonzero(self.recording_of == i) for i in range(n)]
         columns = [self.nuisance_columns(p, i) for i in range(n)]
-        sse = np.array([residual[rows] @ residual[rows] for rows in blocks])
+        sse = np.array([recording_sse(residual, rows) for rows in blocks])
         damping = np.full(n, 1e-3)
         converged = np.zeros(n, dtype=bool)
         for _ in range(max_iterations):
@@ -378,7 +385,7 @@ class FitProblem:
             trial_residual, trial_jac = self.jacobian(effect_ids, fixed, free, trial, effect_too=False)
             for i in np.flatnonzero(~converged):
                 rows, cols = blocks[i], columns[i]
-                trial_sse = trial_residual[rows] @ trial_residual[rows]
+                trial_sse = recording_sse(trial_residual, rows)
                 if trial_sse < sse[i]:
                     # Only a small gain of a nearly undamped (Gauss-Newton) step means convergence:
                     # a heavily damped step gains little anywhere.
@@ -424,7 +431,7 @@ class FitProblem:
         chosen = x.copy()
         for i in range(self.n):
             rows = self.recording_of == i
-            first_sse, second_sse = (float(r[rows] @ r[rows]) for r in residuals)
+            first_sse, second_sse = (recording_sse(r, rows) for r in residuals)
             if second_sse < first_sse:
                 columns = self.nuisance_columns(p, i)
                 chosen[columns] = second[columns]
@@ -535,7 +542,7 @@ class FitProblem:
             for j, residual in enumerate(residuals):
                 for i in range(n):
                     rows, columns = rows_of[i], columns_of[i]
-                    sse = float(residual[rows] @ residual[rows])
+                    sse = recording_sse(residual, rows)
                     if held[j, i] or sse > best_sse[j, i]:
                         held[j, i] = True
                         continue
