@@ -141,7 +141,7 @@ def test_a_fade_that_one_stop_reaches_is_reported_as_resting_on_that_stop(tmp_pa
     assert predicted == unmodified
 
 
-def test_a_profiles_section_that_one_stop_brakes_into_is_predicted_better_than_without_it(tmp_path):
+def test_a_profiles_section_that_one_stop_brakes_into_is_predicted_better_than_without_it(tmp_path, naming_rules):
     # A concealed profile (level, 8 permil up over 200-500 m, level, 9 permil down from 700 m):
     # one stop of eight brakes into the second section. Left out, the others' step on their own
     # gradient predicts it better than the unmodified model does; a step on the stop's gradient
@@ -149,7 +149,7 @@ def test_a_profiles_section_that_one_stop_brakes_into_is_predicted_better_than_w
     # gradient towards its bound and predicted that stop 4.3 times worse than without the profile.
     profile = GradientProfile(start_m=[0.0, 200.0, 500.0, 700.0], gradient_permil=[0.0, 8.0, 0.0, -9.0])
     result = synthesize(tmp_path / "set", 8, seed=5, gradient_profile=profile, declare_gradient_profile=False)
-    diagnoser = Diagnoser(result.recordings, rules=DiagnosisRules(bootstrap_replicates=0))
+    diagnoser = Diagnoser(result.recordings, rules=naming_rules)
     start = {
         "first_section_start_m": 200.0,
         "first_section_length_m": 300.0,

@@ -22,8 +22,6 @@ from brakegym.recordings.synth import EffectRequest, synthesize
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
-NO_BOOTSTRAP = DiagnosisRules(bootstrap_replicates=0)
-
 
 def test_grid_minima_are_the_points_below_every_neighbour():
     rules = DiagnosisRules()
@@ -48,7 +46,7 @@ def test_the_valley_of_a_point_is_where_descent_from_its_nearest_grid_point_ends
     assert grid_valley("rotating_mass", rules, one_axis, points[7:8]) == 7
 
 
-def _fitted(tmp_path, seed, effect_id, chain=None):
+def _fitted(tmp_path, seed, effect_id, rules, chain=None):
     result = synthesize(
         tmp_path / "set",
         8,
@@ -58,23 +56,23 @@ def _fitted(tmp_path, seed, effect_id, chain=None):
         measurement_chain=load_measurement_chain(chain) if chain else None,
     )
     (entry,) = result.key["effects"]
-    candidate = Diagnoser(result.recordings, rules=NO_BOOTSTRAP).fit_effects([effect_id])
+    candidate = Diagnoser(result.recordings, rules=rules).fit_effects([effect_id])
     return entry["parameters"], candidate.report["parameters"]
 
 
-def test_wet_pads_are_fitted_in_the_valley_of_the_truth(tmp_path):
-    truth, fitted = _fitted(tmp_path, 200202, "wet_pads")
+def test_wet_pads_are_fitted_in_the_valley_of_the_truth(tmp_path, naming_rules):
+    truth, fitted = _fitted(tmp_path, 200202, "wet_pads", naming_rules)
     assert abs(fitted["initial_loss"] - truth["initial_loss"]) <= 0.05, (truth, fitted)
     ratio = fitted["drying_energy_MJ"] / truth["drying_energy_MJ"]
     assert 1 / 1.5 <= ratio <= 1.5, (truth, fitted)
 
 
-def test_a_steep_gradient_through_a_real_chain_is_fitted_whole(tmp_path):
-    truth, fitted = _fitted(tmp_path, 300100, "gradient", chain="real")
+def test_a_steep_gradient_through_a_real_chain_is_fitted_whole(tmp_path, naming_rules):
+    truth, fitted = _fitted(tmp_path, 300100, "gradient", naming_rules, chain="real")
     assert abs(fitted["gradient_permil"] - truth["gradient_permil"]) <= 1.0, (truth, fitted)
 
 
-def test_a_fade_is_not_started_where_it_acts_on_nothing(tmp_path):
-    truth, fitted = _fitted(tmp_path, 400404, "thermal_fade")
+def test_a_fade_is_not_started_where_it_acts_on_nothing(tmp_path, naming_rules):
+    truth, fitted = _fitted(tmp_path, 400404, "thermal_fade", naming_rules)
     assert abs(fitted["onset_C"] - truth["onset_C"]) <= 15.0, (truth, fitted)
     assert abs(fitted["loss_per_100K"] - truth["loss_per_100K"]) <= 0.05, (truth, fitted)
